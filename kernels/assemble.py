@@ -1,0 +1,48 @@
+"""Whole-system residual and Newton matrix: one compiled call each.
+
+The system arrays travel as one tuple ``S`` (built once per compiled model by
+``morphlab.solver.kernel_arrays``), so a Newton iteration costs one call for the residual and one
+for the matrix, whatever the number of bodies, elements and joints. The matrix is written into
+the ``data`` array of a CSC matrix whose pattern was fixed at compile time; every contribution
+has a precomputed position (``-1``: skipped).
+
+``S`` = (gravity, body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S,
+flex_I0IS, elem_body, elem_fdof, elem_M, elem_St, elem_K, con_kind, con_dofs, con_u0,
+load_dofs, load_u0, torque_dofs, border_off, border_map, elem_map, con_map_row, con_map_col,
+con_map_H, load_map)
+"""
+
+from numba import njit
+
+from .ffrf import body_jacobian, body_residual
+from .joints import constraint_jacobian, constraint_residual, load_jacobian, load_residual
+
+
+@njit(cache=True)
+def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd, F, T, n_dof, R):
+    """Add one state's weighted share of the residual to ``R`` (n_dof + n_con).
+
+    Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext)``;
+    constraint rows: ``scale (wcm J a - wcf F_c)`` (paper eq. 25–26 for one time level).
+    """
+    body_residual(q, v, a, wm, wf, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7], S[8],
+                  S[10], S[11], S[12], S[13], R)
+    constraint_residual(q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
+                        S[14], S[15], S[16], n_dof, R)
+    load_residual(q, wf, F, S[17], S[18], T, S[19], R)
+
+
+@njit(cache=True)
+def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F, data):
+    """Overwrite ``data`` with ``d(residual)/d(a, lambda/scale)`` at the given state.
+
+    ``q = q_pred + bh2 a`` and ``q' = qd_pred + gh a``; ``cm, cl, cf`` weight the inertia,
+    multiplier and force terms, ``ccm, ccf`` the constraint rows (paper eq. 30–33, every
+    derivative term).
+    """
+    data[:] = 0.0
+    body_jacobian(q, v, a, cm, cf, bh2, gh, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7],
+                  S[8], S[9], S[10], S[11], S[12], S[13], S[20], S[21], S[22], data)
+    constraint_jacobian(q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, S[14], S[15], S[16],
+                        S[23], S[24], S[25], data)
+    load_jacobian(q, cf, bh2, F, S[17], S[18], S[26], data)

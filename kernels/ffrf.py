@@ -1,0 +1,369 @@
+"""Planar FFRF bodies: mass matrix, quadratic-velocity, gravity and elastic forces, and their
+exact derivatives, for all bodies of a system in one call.
+
+Body data (see ``morphlab.compile``)
+------------------------------------
+Every body — rigid or flexible — has reference coordinates ``(R_x, R_y, theta)`` at global DOFs
+``body_ref[b]`` and scalar invariants ``body_scal[b] = (m, I_u_x, I_u_y, I_00)``. A flexible
+body also owns the entries ``flex_off[b]:flex_off[b+1]`` of the *flex* arrays: the global DOF of
+each retained deformation coordinate (``flex_dof``) and the invariants ``I_S`` (``flex_IS``,
+shape (n_flex, 2)), ``I_0S`` and ``I_0ĨS``. Its elements hold their body-frame matrices
+``M_ff``, ``S̃`` and ``K_ff`` (6 x 6) and the flex index of each element DOF (``elem_fdof``,
+``-1`` where the reference condition removes the DOF). A rigid body is the special case with no
+flex coordinates (and ``I_u = 0`` when the reference point is the centre of mass).
+
+With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)``, ``Ĩ = [[0, -1], [1, 0]]`` (DESIGN.md §3)::
+
+    M a   = [ m a_R + AĨ c_u a_th + A I_S a_f ;
+              (AĨ c_u).a_R + M_thth a_th + (I_0ĨS + S̃ q_f).a_f ;
+              I_S^T A^T a_R + (I_0ĨS + S̃ q_f) a_th + M_ff a_f ]
+    M_thth = I_00 + 2 I_0S.q_f + q_f^T M_ff q_f
+    Q_v   = [ th'^2 A c_u - 2 th' AĨ I_S q_f' ;
+              -2 th' (I_0S + M_ff q_f).q_f' ;
+              th'^2 (I_0S + M_ff q_f) - 2 th' S̃ q_f' ]
+    Q_g   = [ m g ; (AĨ c_u).g ; I_S^T A^T g ]
+
+and the body's share of the generalized-alpha residual is
+``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)``.
+
+All kernels run unchanged for float64 and complex128 arrays.
+"""
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex):
+    """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
+
+    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv`` (each (n_flex,)).
+    """
+    dt = q.dtype
+    qf = np.zeros(n_flex, dtype=dt)
+    vf = np.zeros(n_flex, dtype=dt)
+    af = np.zeros(n_flex, dtype=dt)
+    for k in range(n_flex):
+        qf[k] = q[flex_dof[k]]
+        vf[k] = v[flex_dof[k]]
+        af[k] = a[flex_dof[k]]
+    Mq = np.zeros(n_flex, dtype=dt)
+    Mv = np.zeros(n_flex, dtype=dt)
+    Ma = np.zeros(n_flex, dtype=dt)
+    Sq = np.zeros(n_flex, dtype=dt)
+    Sv = np.zeros(n_flex, dtype=dt)
+    Sa = np.zeros(n_flex, dtype=dt)
+    Kq = np.zeros(n_flex, dtype=dt)
+    Kv = np.zeros(n_flex, dtype=dt)
+    for e in range(elem_fdof.shape[0]):
+        fd = elem_fdof[e]
+        for i in range(6):
+            fi = fd[i]
+            if fi < 0:
+                continue
+            for j in range(6):
+                fj = fd[j]
+                if fj < 0:
+                    continue
+                m = elem_M[e, i, j]
+                st = elem_St[e, i, j]
+                kk = elem_K[e, i, j]
+                Mq[fi] += m * qf[fj]
+                Mv[fi] += m * vf[fj]
+                Ma[fi] += m * af[fj]
+                Sq[fi] += st * qf[fj]
+                Sv[fi] += st * vf[fj]
+                Sa[fi] += st * af[fj]
+                Kq[fi] += kk * qf[fj]
+                Kv[fi] += kk * vf[fj]
+    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv
+
+
+@njit(cache=True)
+def body_residual(
+    q, v, a, wm, wf, gravity,
+    body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
+    elem_fdof, elem_M, elem_St, elem_K, R,
+):
+    """Add every body's ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
+
+    Parameters
+    ----------
+    q, v, a : (n_dof,)
+        Generalized coordinates, velocities, accelerations (one dtype).
+    wm, wf : scalar
+        Weights of the inertia term and of the force terms.
+    gravity : (2,)
+        Gravitational acceleration [length/time²].
+    R : (>= n_dof,), in/out
+        Residual; the body rows are added to.
+    """
+    n_flex = flex_dof.shape[0]
+    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
+        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
+    )
+    gx = gravity[0]
+    gy = gravity[1]
+    for b in range(body_ref.shape[0]):
+        iR0 = body_ref[b, 0]
+        iR1 = body_ref[b, 1]
+        ith = body_ref[b, 2]
+        m = body_scal[b, 0]
+        th = q[ith]
+        thd = v[ith]
+        tha = a[ith]
+        c = np.cos(th)
+        s = np.sin(th)
+        cux = body_scal[b, 1]
+        cuy = body_scal[b, 2]
+        isax = 0.0 * m
+        isay = 0.0 * m
+        isvx = 0.0 * m
+        isvy = 0.0 * m
+        i0s_q = 0.0 * m
+        i0s_v = 0.0 * m
+        qMq = 0.0 * m
+        qMv = 0.0 * m
+        i0is_a = 0.0 * m
+        sq_a = 0.0 * m
+        for k in range(flex_off[b], flex_off[b + 1]):
+            cux += flex_IS[k, 0] * qf[k]
+            cuy += flex_IS[k, 1] * qf[k]
+            isax += flex_IS[k, 0] * af[k]
+            isay += flex_IS[k, 1] * af[k]
+            isvx += flex_IS[k, 0] * vf[k]
+            isvy += flex_IS[k, 1] * vf[k]
+            i0s_q += flex_I0S[k] * qf[k]
+            i0s_v += flex_I0S[k] * vf[k]
+            qMq += qf[k] * Mq[k]
+            qMv += Mq[k] * vf[k]
+            i0is_a += flex_I0IS[k] * af[k]
+            sq_a += Sq[k] * af[k]
+        # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
+        Acx = c * cux - s * cuy
+        Acy = s * cux + c * cuy
+        AIcx = -Acy
+        AIcy = Acx
+        Aisa_x = c * isax - s * isay
+        Aisa_y = s * isax + c * isay
+        Aisv_x = c * isvx - s * isvy
+        Aisv_y = s * isvx + c * isvy
+        AIisv_x = -Aisv_y
+        AIisv_y = Aisv_x
+        aRx = a[iR0]
+        aRy = a[iR1]
+        mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
+        # inertia
+        R[iR0] += wm * (m * aRx + AIcx * tha + Aisa_x)
+        R[iR1] += wm * (m * aRy + AIcy * tha + Aisa_y)
+        R[ith] += wm * (AIcx * aRx + AIcy * aRy + mthth * tha + i0is_a + sq_a)
+        # forces: F = -Q_v - Q_g (+ elastic, flex rows below)
+        qvx = thd * thd * Acx - 2.0 * thd * AIisv_x
+        qvy = thd * thd * Acy - 2.0 * thd * AIisv_y
+        qvth = -2.0 * thd * (i0s_v + qMv)
+        R[iR0] -= wf * (qvx + m * gx)
+        R[iR1] -= wf * (qvy + m * gy)
+        R[ith] -= wf * (qvth + AIcx * gx + AIcy * gy)
+        # A^T a_R and A^T g
+        ATax = c * aRx + s * aRy
+        ATay = -s * aRx + c * aRy
+        ATgx = c * gx + s * gy
+        ATgy = -s * gx + c * gy
+        beta = body_damp[b]
+        for k in range(flex_off[b], flex_off[b + 1]):
+            i = flex_dof[k]
+            isx = flex_IS[k, 0]
+            isy = flex_IS[k, 1]
+            R[i] += wm * (isx * ATax + isy * ATay + (flex_I0IS[k] + Sq[k]) * tha + Ma[k])
+            qvf = thd * thd * (flex_I0S[k] + Mq[k]) - 2.0 * thd * Sv[k]
+            qgf = isx * ATgx + isy * ATgy
+            R[i] += wf * (Kq[k] + beta * Kv[k] - qvf - qgf)
+
+
+@njit(cache=True)
+def body_jacobian(
+    q, v, a, cm, cf, bh2, gh, gravity,
+    body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
+    elem_body, elem_fdof, elem_M, elem_St, elem_K, border_off, border_map, elem_map, data,
+):
+    """Add every body's block of ``d(residual)/d(a)`` to the CSC ``data`` array.
+
+    The residual block is ``cm M(q) a + cf F(q, q')`` with ``q = q_pred + bh2 a`` and
+    ``q' = qd_pred + gh a``, so the block is ``cm (M + bh2 d(Ma)/dq) + cf (bh2 dF/dq + gh dF/dq')``
+    (paper eq. 30; every term included).
+
+    Parameters
+    ----------
+    cm, cf : scalar
+        Weights of the inertia and force terms (``1 - alpha_m``, ``1 - alpha_f``).
+    bh2, gh : scalar
+        ``beta h²`` and ``gamma h`` of the Newmark update.
+    border_off : (n_body + 1,) int64
+        Offsets of each body's border entries: the 3 x 3 reference block, then the 3 x n_f
+        reference-row/flex-column entries, then the n_f x 3 flex-row/reference-column entries
+        (row-major within each part).
+    elem_body : (n_elem,) int64
+        Body index of each element.
+    border_map, elem_map : int64
+        Position in ``data`` of every border entry and every element entry (``-1``: skipped).
+    data : (nnz,), in/out
+        CSC data array of the Newton matrix.
+    """
+    n_flex = flex_dof.shape[0]
+    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
+        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
+    )
+    gx = gravity[0]
+    gy = gravity[1]
+    blk = np.zeros((3, 3), dtype=data.dtype)
+    for b in range(body_ref.shape[0]):
+        iR0 = body_ref[b, 0]
+        iR1 = body_ref[b, 1]
+        ith = body_ref[b, 2]
+        m = body_scal[b, 0]
+        th = q[ith]
+        thd = v[ith]
+        tha = a[ith]
+        c = np.cos(th)
+        s = np.sin(th)
+        cux = body_scal[b, 1]
+        cuy = body_scal[b, 2]
+        isax = 0.0 * m
+        isay = 0.0 * m
+        isvx = 0.0 * m
+        isvy = 0.0 * m
+        i0s_q = 0.0 * m
+        i0s_v = 0.0 * m
+        qMq = 0.0 * m
+        qMv = 0.0 * m
+        for k in range(flex_off[b], flex_off[b + 1]):
+            cux += flex_IS[k, 0] * qf[k]
+            cuy += flex_IS[k, 1] * qf[k]
+            isax += flex_IS[k, 0] * af[k]
+            isay += flex_IS[k, 1] * af[k]
+            isvx += flex_IS[k, 0] * vf[k]
+            isvy += flex_IS[k, 1] * vf[k]
+            i0s_q += flex_I0S[k] * qf[k]
+            i0s_v += flex_I0S[k] * vf[k]
+            qMq += qf[k] * Mq[k]
+            qMv += Mq[k] * vf[k]
+        Acx = c * cux - s * cuy
+        Acy = s * cux + c * cuy
+        AIcx = -Acy
+        AIcy = Acx
+        Aisa_x = c * isax - s * isay
+        Aisa_y = s * isax + c * isay
+        AIisa_x = -Aisa_y
+        AIisa_y = Aisa_x
+        Aisv_x = c * isvx - s * isvy
+        Aisv_y = s * isvx + c * isvy
+        AIisv_x = -Aisv_y
+        AIisv_y = Aisv_x
+        aRx = a[iR0]
+        aRy = a[iR1]
+        mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
+        # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
+        for i in range(3):
+            for j in range(3):
+                blk[i, j] = 0.0
+        # mass
+        blk[0, 0] += cm * m
+        blk[1, 1] += cm * m
+        blk[0, 2] += cm * AIcx
+        blk[1, 2] += cm * AIcy
+        blk[2, 0] += cm * AIcx
+        blk[2, 1] += cm * AIcy
+        blk[2, 2] += cm * mthth
+        # d(M a)/d th
+        blk[0, 2] += cm * bh2 * (-Acx * tha + AIisa_x)
+        blk[1, 2] += cm * bh2 * (-Acy * tha + AIisa_y)
+        blk[2, 2] += cm * bh2 * (-(Acx * aRx + Acy * aRy))
+        # F = -Q_v - Q_g: d/d th and d/d th'
+        # Q_v,R = th'^2 A c_u - 2 th' AĨ I_S q_f'
+        dqvR_dth_x = thd * thd * AIcx + 2.0 * thd * Aisv_x
+        dqvR_dth_y = thd * thd * AIcy + 2.0 * thd * Aisv_y
+        blk[0, 2] -= cf * bh2 * dqvR_dth_x
+        blk[1, 2] -= cf * bh2 * dqvR_dth_y
+        blk[0, 2] -= cf * gh * (2.0 * thd * Acx - 2.0 * AIisv_x)
+        blk[1, 2] -= cf * gh * (2.0 * thd * Acy - 2.0 * AIisv_y)
+        # Q_v,th = -2 th' (I_0S + M_ff q_f).q_f'  -> d/d th' only
+        blk[2, 2] -= cf * gh * (-2.0 * (i0s_v + qMv))
+        # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
+        blk[2, 2] -= cf * bh2 * (-(Acx * gx + Acy * gy))
+        o = border_off[b]
+        for i in range(3):
+            for j in range(3):
+                p = border_map[o + 3 * i + j]
+                if p >= 0:
+                    data[p] += blk[i, j]
+        f0 = flex_off[b]
+        nf = flex_off[b + 1] - f0
+        o_rf = o + 9
+        o_fr = o + 9 + 3 * nf
+        for kk in range(nf):
+            k = f0 + kk
+            isx = flex_IS[k, 0]
+            isy = flex_IS[k, 1]
+            Aisx = c * isx - s * isy
+            Aisy = s * isx + c * isy
+            AIisx = -Aisy
+            AIisy = Aisx
+            # rows R (0, 1), th (2); column f_k
+            vR0 = cm * Aisx + cm * bh2 * AIisx * tha
+            vR1 = cm * Aisy + cm * bh2 * AIisy * tha
+            # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
+            vR0 += -cf * bh2 * thd * thd * Aisx + cf * gh * 2.0 * thd * AIisx
+            vR1 += -cf * bh2 * thd * thd * Aisy + cf * gh * 2.0 * thd * AIisy
+            mthf = flex_I0IS[k] + Sq[k]
+            vth = cm * mthf
+            vth += cm * bh2 * (
+                AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k]) - Sa[k]
+            )
+            # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
+            # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
+            vth -= cf * bh2 * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy))
+            vth -= cf * gh * (-2.0 * thd * (flex_I0S[k] + Mq[k]))
+            p = border_map[o_rf + kk]
+            if p >= 0:
+                data[p] += vR0
+            p = border_map[o_rf + nf + kk]
+            if p >= 0:
+                data[p] += vR1
+            p = border_map[o_rf + 2 * nf + kk]
+            if p >= 0:
+                data[p] += vth
+            # row f_k; columns R_x, R_y, th
+            fR0 = cm * Aisx
+            fR1 = cm * Aisy
+            # d(M a)_f/d th = (AĨ I_S_k).a_R
+            fth = cm * mthf + cm * bh2 * (AIisx * aRx + AIisy * aRy)
+            # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
+            fth -= cf * gh * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k])
+            # Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
+            fth -= cf * bh2 * (AIisx * gx + AIisy * gy)
+            p = border_map[o_fr + 3 * kk]
+            if p >= 0:
+                data[p] += fR0
+            p = border_map[o_fr + 3 * kk + 1]
+            if p >= 0:
+                data[p] += fR1
+            p = border_map[o_fr + 3 * kk + 2]
+            if p >= 0:
+                data[p] += fth
+    # ---- flex-flex block, element by element
+    for e in range(elem_fdof.shape[0]):
+        b = elem_body[e]
+        ith = body_ref[b, 2]
+        thd = v[ith]
+        tha = a[ith]
+        beta = body_damp[b]
+        coefM = cm - cf * bh2 * thd * thd
+        coefK = cf * (bh2 + gh * beta)
+        coefS = cm * bh2 * tha + cf * gh * 2.0 * thd
+        for i in range(6):
+            for j in range(6):
+                p = elem_map[e, i, j]
+                if p >= 0:
+                    data[p] += coefM * elem_M[e, i, j] + coefK * elem_K[e, i, j] + coefS * elem_St[
+                        e, i, j
+                    ]

@@ -1,0 +1,30 @@
+"""morphlab: planar flexible multibody dynamics (FFRF) with generalized-alpha time integration
+and direct-differentiation design sensitivities.
+
+Reproduces Gufler, Wehrle, Achleitner, Vidoni: "Flexible multibody dynamics and sensitivity
+analysis in the design of a morphing leading edge for high-performance sailplanes".
+"""
+
+from .compile import System, compile_model
+from .errors import (
+    ConvergenceError,
+    ModelError,
+    MorphlabError,
+    NonFiniteError,
+    SensitivityError,
+    SingularMatrixError,
+    SolverError,
+)
+from .model import Beam, Model, RigidBody
+from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
+from .results import Result
+from .solver import GeneralizedAlpha, Settings, State, simulate, static
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Beam", "Constant", "ConvergenceError", "Custom", "GeneralizedAlpha", "Linear", "Model",
+    "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
+    "SensitivityError", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
+    "State", "System", "compile_model", "simulate", "static", "__version__",
+]

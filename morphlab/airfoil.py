@@ -1,0 +1,631 @@
+"""CST airfoil geometry and the target shapes of the morphing leading edge (paper §4).
+
+The wing section of the paper has a chord of 550 mm and a maximum thickness of 67.5 mm; its
+leading-edge section is the front 137.5 mm of the chord, bounded by the front spar. The flexible
+skin runs from point F (upper surface at the spar) round the nose to point G (lower surface at
+the spar). F is clamped; G keeps its y coordinate and its rotation and slides freely in x.
+
+This module provides
+
+* the class/shape transformation (CST) of Kulfan [1]_ (:func:`cst_surface`, :class:`CSTAirfoil`),
+* the high-speed airfoil used as the undeformed skin shape (:func:`high_speed_airfoil`),
+* polyline tools (:func:`leading_edge_curve`, :func:`arc_length`, :func:`resample_equal_arc`),
+* the drooped-nose low-speed target (:func:`drooped_curve`) and the node-by-node mapping of
+  both shapes at equal arc length (:func:`target_nodes`).
+
+All lengths are in mm, all angles in rad. Only the geometry is computed here; nothing in this
+module is a design variable of the sensitivity analysis, so it works on float64 arrays only.
+
+References
+----------
+.. [1] B. M. Kulfan, "Universal parametric geometry representation method", Journal of
+   Aircraft 45(1), 142-158, 2008. doi:10.2514/1.29958
+"""
+
+from dataclasses import dataclass, replace
+from math import comb
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "CHORD_MM",
+    "THICKNESS_MM",
+    "X_SPAR_MM",
+    "DEFAULT_DROOP_MM",
+    "cst_surface",
+    "CSTAirfoil",
+    "high_speed_airfoil",
+    "leading_edge_curve",
+    "arc_length",
+    "resample_equal_arc",
+    "leading_edge_point",
+    "drooped_curve",
+    "target_nodes",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: Chord of the wing section of the paper [mm].
+CHORD_MM = 550.0
+#: Maximum thickness of the wing section of the paper [mm].
+THICKNESS_MM = 67.5
+#: x position of the front spar, i.e. of the skin ends F and G [mm].
+X_SPAR_MM = 137.5
+#: Default droop of the low-speed target: downward displacement of the leading edge [mm].
+#: With this value the skin's tangent turns by at most ~0.096 rad (see :func:`target_nodes`),
+#: so the spurious stretch of linear FFRF kinematics (~phi^2/2 of an element's length) stays
+#: below 0.5 % locally and sums to ~0.5 mm over the whole skin.
+DEFAULT_DROOP_MM = 6.0
+
+# CST weights of the high-speed airfoil before scaling (chord 1, n = 5); see high_speed_airfoil.
+_HS_UPPER = (0.14, 0.19, 0.23, 0.27, 0.24, 0.22)
+_HS_LOWER = (-0.14, -0.07, -0.09, -0.09, -0.06, -0.07)
+
+
+def cst_surface(
+    psi: ArrayLike,
+    weights: ArrayLike,
+    n1: float = 0.5,
+    n2: float = 1.0,
+    te: float = 0.0,
+) -> FloatArray:
+    r"""Evaluate one CST surface (Kulfan 2008) in chord-normalised coordinates.
+
+    Parameters
+    ----------
+    psi : array_like, any shape
+        Normalised chordwise position ``x / c`` in [0, 1] (values within 1e-12 outside the
+        interval are clipped to it).
+    weights : array_like, shape (n + 1,)
+        Bernstein weights ``A_0 ... A_n`` of the shape function (dimensionless). ``n`` is the
+        order of the Bernstein polynomial.
+    n1, n2 : float, optional
+        Exponents of the class function. ``n1 = 0.5, n2 = 1`` (default) gives a round nose and
+        a sharp trailing edge.
+    te : float, optional
+        Trailing-edge offset ``y_TE / c`` (dimensionless), added linearly in ``psi``.
+
+    Returns
+    -------
+    ndarray of float64, same shape as `psi`
+        Normalised ordinate ``y / c``.
+
+    Notes
+    -----
+    .. math::
+
+        \frac{y}{c} = \psi^{n_1}(1-\psi)^{n_2}
+        \sum_{i=0}^{n} A_i \binom{n}{i}\psi^i(1-\psi)^{n-i} + \psi\,\frac{y_{TE}}{c}
+
+    The Bernstein polynomials sum to one, so equal weights ``A_i = 1`` return the class
+    function itself. Near the nose ``y/c ~ A_0 sqrt(psi)`` for ``n1 = 0.5``, i.e. a nose
+    radius of ``A_0**2 / 2`` chords.
+    """
+    psi_arr = np.asarray(psi, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    if w.ndim != 1 or w.size == 0:
+        raise ValueError("weights must be a non-empty 1-D sequence")
+    tol = 1e-12
+    if np.any(psi_arr < -tol) or np.any(psi_arr > 1.0 + tol):
+        raise ValueError("psi must lie in [0, 1]")
+    psi_arr = np.clip(psi_arr, 0.0, 1.0)
+    n = w.size - 1
+    one_minus = 1.0 - psi_arr
+    shape = np.zeros_like(psi_arr)
+    for i, a_i in enumerate(w):
+        shape += a_i * comb(n, i) * psi_arr**i * one_minus ** (n - i)
+    class_fn = psi_arr**n1 * one_minus**n2
+    return class_fn * shape + psi_arr * te
+
+
+def _golden_max(fun, a: float, b: float, tol: float = 1e-13) -> float:
+    """Abscissa of the maximum of a unimodal function on [a, b] by golden-section search."""
+    inv_phi = (np.sqrt(5.0) - 1.0) / 2.0
+    c = b - inv_phi * (b - a)
+    d = a + inv_phi * (b - a)
+    fc, fd = fun(c), fun(d)
+    while b - a > tol:
+        if fc > fd:
+            b, d, fd = d, c, fc
+            c = b - inv_phi * (b - a)
+            fc = fun(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + inv_phi * (b - a)
+            fd = fun(d)
+    return 0.5 * (a + b)
+
+
+@dataclass(frozen=True)
+class CSTAirfoil:
+    """Airfoil described by two CST surfaces with a sharp trailing edge.
+
+    Parameters
+    ----------
+    upper : tuple of float, length n_u + 1
+        CST weights of the upper surface (dimensionless, positive for a normal airfoil).
+    lower : tuple of float, length n_l + 1
+        CST weights of the lower surface (dimensionless, negative for a normal airfoil).
+    chord : float, optional
+        Chord length [mm]. Default 550 mm.
+    n1, n2 : float, optional
+        Class-function exponents (round nose, sharp trailing edge by default).
+
+    Notes
+    -----
+    The leading edge is at (0, 0) and the trailing edge at (chord, 0). If
+    ``upper[0] == -lower[0]`` both surfaces have the same nose radius and the contour's
+    curvature is continuous through the leading edge.
+    """
+
+    upper: tuple[float, ...]
+    lower: tuple[float, ...]
+    chord: float = CHORD_MM
+    n1: float = 0.5
+    n2: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "upper", tuple(float(a) for a in self.upper))
+        object.__setattr__(self, "lower", tuple(float(a) for a in self.lower))
+        if not self.upper or not self.lower:
+            raise ValueError("upper and lower weights must not be empty")
+        if not self.chord > 0.0:
+            raise ValueError("chord must be positive")
+
+    def surfaces(self, x: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Ordinates of the upper and lower surface.
+
+        Parameters
+        ----------
+        x : array_like, any shape
+            Chordwise positions in [0, chord] [mm].
+
+        Returns
+        -------
+        y_upper, y_lower : ndarray of float64, same shape as `x`
+            Ordinates [mm].
+        """
+        psi = np.asarray(x, dtype=float) / self.chord
+        y_u = self.chord * cst_surface(psi, self.upper, self.n1, self.n2)
+        y_l = self.chord * cst_surface(psi, self.lower, self.n1, self.n2)
+        return y_u, y_l
+
+    def thickness(self, x: ArrayLike) -> FloatArray:
+        """Local thickness ``y_upper - y_lower`` [mm] at chordwise positions `x` [mm]."""
+        y_u, y_l = self.surfaces(x)
+        return y_u - y_l
+
+    def max_thickness_position(self) -> float:
+        """Chordwise position of the maximum thickness [mm].
+
+        A cosine-spaced sample of 2001 points brackets the maximum, and a golden-section
+        search refines it to 1e-13 chords (the maximum value is then exact to round-off,
+        because the thickness is stationary there).
+        """
+        psi = 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, 2001)))
+        t = self.thickness(psi * self.chord)
+        k = int(np.argmax(t))
+        lo, hi = psi[max(k - 1, 0)], psi[min(k + 1, psi.size - 1)]
+        psi_max = _golden_max(lambda p: float(self.thickness(p * self.chord)), lo, hi)
+        return psi_max * self.chord
+
+    def max_thickness(self) -> float:
+        """Maximum thickness [mm] (see :meth:`max_thickness_position` for the search)."""
+        return float(self.thickness(self.max_thickness_position()))
+
+    def scaled_to_thickness(self, t: float) -> "CSTAirfoil":
+        """Copy with all weights scaled so that the maximum thickness is `t` [mm].
+
+        Upper and lower weights are multiplied by the same factor, so thickness and camber
+        keep their proportion (the camber line scales with the thickness). With a sharp
+        trailing edge the thickness is linear in the weights and the scaling is exact.
+        """
+        if not t > 0.0:
+            raise ValueError("thickness must be positive")
+        k = t / self.max_thickness()
+        return replace(
+            self,
+            upper=tuple(k * a for a in self.upper),
+            lower=tuple(k * a for a in self.lower),
+        )
+
+    def contour(self, n: int = 201) -> FloatArray:
+        """Closed contour from the trailing edge over the upper surface round the nose back.
+
+        Parameters
+        ----------
+        n : int, optional
+            Number of points (>= 3). Odd `n` includes the leading edge (0, 0) itself.
+
+        Returns
+        -------
+        ndarray of float64, shape (n, 2)
+            Points ``(x, y)`` [mm], trailing edge (upper) -> leading edge -> trailing edge
+            (lower), with cosine spacing ``x = c (1 + cos beta) / 2``, beta in [0, 2 pi], which
+            clusters points at the nose and the trailing edge.
+        """
+        if n < 3:
+            raise ValueError("n must be at least 3")
+        beta = np.linspace(0.0, 2.0 * np.pi, n)
+        x = 0.5 * self.chord * (1.0 + np.cos(beta))
+        y_u, y_l = self.surfaces(x)
+        y = np.where(beta <= np.pi, y_u, y_l)
+        return np.column_stack([x, y])
+
+
+def high_speed_airfoil(chord: float = CHORD_MM, thickness: float = THICKNESS_MM) -> CSTAirfoil:
+    """Cambered laminar-type sailplane airfoil, the undeformed (high-speed) skin shape.
+
+    Parameters
+    ----------
+    chord : float, optional
+        Chord [mm]. Default 550 mm.
+    thickness : float, optional
+        Maximum thickness [mm]. Default 67.5 mm (12.27 % of the chord).
+
+    Returns
+    -------
+    CSTAirfoil
+        Fifth-order CST airfoil (6 weights per surface) with the given chord and maximum
+        thickness.
+
+    Notes
+    -----
+    The paper's own airfoils come from an aerodynamic optimisation that is not published, so
+    this is a stand-in with the features of a laminar sailplane section. The unscaled weights
+    were set by hand as thickness weights ``T`` plus camber weights ``C`` (upper = T + C,
+    lower = -T + C) and rounded to two decimals::
+
+        upper = ( 0.14,  0.19,  0.23,  0.27,  0.24,  0.22)
+        lower = (-0.14, -0.07, -0.09, -0.09, -0.06, -0.07)
+
+    and then every weight is multiplied by one factor to reach the required thickness (this
+    keeps the camber-to-thickness ratio). The choices, checked by evaluating the contour:
+
+    * ``C_0 = 0`` (equal first weights): same nose radius on both sides, so the curvature is
+      continuous round the nose, which the bent skin needs. After scaling the nose radius is
+      ``A_0**2 / 2`` = 1.08 % of the chord (5.9 mm).
+    * Thickness weights growing to the middle put the maximum thickness aft, at 39 % of the
+      chord, as on laminar sections (long favourable pressure gradient).
+    * Camber weights growing aft give a maximum camber of 2.8 % of the chord at 48 % and a
+      lower surface that turns concave over the last 21 % (aft loading); the upper surface
+      stays convex up to the trailing edge (the last two upper weights were set for that).
+    """
+    base = CSTAirfoil(upper=_HS_UPPER, lower=_HS_LOWER, chord=chord)
+    return base.scaled_to_thickness(thickness)
+
+
+def _as_curve(curve: ArrayLike, min_points: int = 2) -> FloatArray:
+    pts = np.asarray(curve, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < min_points:
+        raise ValueError(f"curve must have shape (m, 2) with m >= {min_points}")
+    return pts
+
+
+def leading_edge_curve(airfoil: CSTAirfoil, x_spar: float = X_SPAR_MM, n: int = 2001) -> FloatArray:
+    """Dense polyline of the skin from F round the nose to G.
+
+    Parameters
+    ----------
+    airfoil : CSTAirfoil
+        Airfoil whose front part is the skin.
+    x_spar : float, optional
+        Chordwise position of the front spar, i.e. of F and G [mm]. Default 137.5 mm.
+    n : int, optional
+        Number of points (>= 3). Default 2001.
+
+    Returns
+    -------
+    ndarray of float64, shape (n, 2)
+        Points ``(x, y)`` [mm] ordered F = (x_spar, y_upper(x_spar)) -> nose ->
+        G = (x_spar, y_lower(x_spar)).
+
+    Notes
+    -----
+    The points use ``x = x_spar (1 + cos beta) / 2`` with beta equally spaced in [0, 2 pi]
+    (upper surface for beta <= pi). Since ``y ~ sqrt(x)`` at the nose, ``y`` is then a smooth,
+    sign-changing function of beta there, and the nose is as well resolved as the rest. For odd
+    `n` the leading edge (0, 0) is one of the points. With n = 2001 the largest segment is
+    about 0.2 mm long and the polyline stays within 1e-4 mm of the true contour.
+    """
+    if not 0.0 < x_spar < airfoil.chord:
+        raise ValueError("x_spar must lie inside the chord")
+    if n < 3:
+        raise ValueError("n must be at least 3")
+    beta = np.linspace(0.0, 2.0 * np.pi, n)
+    x = 0.5 * x_spar * (1.0 + np.cos(beta))
+    x[0] = x[-1] = x_spar  # cos(2 pi) is not exactly 1 in floating point
+    y_u, y_l = airfoil.surfaces(x)
+    y = np.where(beta <= np.pi, y_u, y_l)
+    return np.column_stack([x, y])
+
+
+def _cumulative_arc(pts: FloatArray) -> FloatArray:
+    seg = np.diff(pts, axis=0)
+    return np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
+
+
+def arc_length(curve: ArrayLike) -> float:
+    """Length of a polyline.
+
+    Parameters
+    ----------
+    curve : array_like, shape (m, 2)
+        Vertices [mm].
+
+    Returns
+    -------
+    float
+        Sum of the segment lengths [mm].
+    """
+    pts = _as_curve(curve)
+    return float(_cumulative_arc(pts)[-1])
+
+
+def resample_equal_arc(curve: ArrayLike, n_nodes: int) -> FloatArray:
+    """Points at equal arc-length spacing along a polyline.
+
+    Parameters
+    ----------
+    curve : array_like, shape (m, 2)
+        Vertices of a dense polyline [mm].
+    n_nodes : int
+        Number of points to return (>= 2).
+
+    Returns
+    -------
+    ndarray of float64, shape (n_nodes, 2)
+        Point k lies at arc length ``k L / (n_nodes - 1)`` along the polyline (L: its length),
+        found by linear interpolation within the segment that contains it. The first and last
+        vertices are returned exactly.
+    """
+    pts = _as_curve(curve)
+    if n_nodes < 2:
+        raise ValueError("n_nodes must be at least 2")
+    s = _cumulative_arc(pts)
+    if not s[-1] > 0.0:
+        raise ValueError("curve has zero length")
+    s_new = np.linspace(0.0, s[-1], n_nodes)
+    out = np.column_stack([np.interp(s_new, s, pts[:, 0]), np.interp(s_new, s, pts[:, 1])])
+    out[0] = pts[0]
+    out[-1] = pts[-1]
+    return out
+
+
+def leading_edge_point(curve: ArrayLike) -> tuple[float, float, float]:
+    """Point of minimum x of a polyline, refined between vertices.
+
+    Parameters
+    ----------
+    curve : array_like, shape (m, 2)
+        Vertices [mm].
+
+    Returns
+    -------
+    x_le, y_le, s_le : float
+        Coordinates of the leading-edge point [mm] and its arc-length position from the first
+        vertex [mm].
+
+    Notes
+    -----
+    A parabola in the arc length through the vertex of smallest x and its two neighbours gives
+    the position of the minimum; x and y are then interpolated quadratically through the same
+    three vertices. On a smooth, densely sampled curve this is accurate to O(h^3) (h: segment
+    length) and varies continuously when the curve moves, which the droop solver relies on.
+    """
+    pts = _as_curve(curve)
+    s = _cumulative_arc(pts)
+    k = int(np.argmin(pts[:, 0]))
+    if k == 0 or k == pts.shape[0] - 1:
+        return float(pts[k, 0]), float(pts[k, 1]), float(s[k])
+    s3 = s[k - 1 : k + 2]
+    x3 = pts[k - 1 : k + 2, 0]
+    y3 = pts[k - 1 : k + 2, 1]
+    px = np.polyfit(s3 - s3[1], x3, 2)
+    py = np.polyfit(s3 - s3[1], y3, 2)
+    ds = -px[1] / (2.0 * px[0]) if px[0] > 0.0 else 0.0
+    ds = float(np.clip(ds, s3[0] - s3[1], s3[2] - s3[1]))
+    return float(np.polyval(px, ds)), float(np.polyval(py, ds)), float(s3[1] + ds)
+
+
+def _rotate_segments(seg: FloatArray, angle: FloatArray) -> FloatArray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.column_stack([c * seg[:, 0] - s * seg[:, 1], s * seg[:, 0] + c * seg[:, 1]])
+
+
+def drooped_curve(
+    curve: ArrayLike,
+    droop: float,
+    x_spar: float = X_SPAR_MM,
+    *,
+    blend_depth: float = 1.0,
+    tol: float = 1e-11,
+    max_iter: int = 50,
+) -> FloatArray:
+    """Low-speed target: the skin curve with its nose drooped, at constant arc length.
+
+    Parameters
+    ----------
+    curve : array_like, shape (m, 2)
+        Dense skin polyline F -> nose -> G [mm], e.g. from :func:`leading_edge_curve`; both
+        ends at ``x >= x_spar``, the nose at its minimum x.
+    droop : float
+        Required downward displacement of the leading edge [mm] (positive: nose down).
+    x_spar : float, optional
+        x position of the spar [mm]; the skin behind it (x >= x_spar) is not rotated.
+        Default 137.5 mm.
+    blend_depth : float, optional
+        Fraction of the spar-to-leading-edge distance over which the rotation fades in, in
+        (0, 1]. 1 (default): the rotation grows all the way to the leading edge (smallest
+        change of curvature). Smaller values turn the front of the nose as a rigid body and
+        concentrate the bending near the spar (smaller rotations and G shift, larger
+        curvature change; for a 6 mm droop, 0.5 gives 0.063 rad and 3.5 mm instead of
+        0.096 rad and 4.6 mm).
+    tol : float, optional
+        Tolerance on the two closure conditions below [mm].
+    max_iter : int, optional
+        Maximum number of Newton iterations.
+
+    Returns
+    -------
+    ndarray of float64, shape (m, 2)
+        Drooped polyline [mm]; vertex j is the image of vertex j of `curve` (same arc-length
+        position), F is unchanged and G has moved in x only.
+
+    Raises
+    ------
+    ValueError
+        If the curve's ends lie in front of the spar.
+    RuntimeError
+        If Newton's method does not converge.
+
+    Notes
+    -----
+    The construction rotates the skin's tangent and integrates it again, segment by segment:
+
+    1. Each segment k of the polyline (vector ``d_k``, arc-length midpoint ``s_k``, midpoint
+       abscissa ``x_k``) is turned by an angle ``dtheta_k`` and the vertices are rebuilt from F
+       by summing the turned segments: ``p'_0 = F``, ``p'_{j+1} = p'_j + R(dtheta_j) d_j``.
+       Rotation keeps every segment length, so the arc length F -> G and the arc-length
+       position of every vertex are kept exactly (to round-off).
+    2. The turning angle is ``dtheta(s) = b(xi) (a + c (s - s_le) / L)`` with
+       ``xi = (x_spar - x) / (blend_depth (x_spar - x_le))`` clipped to [0, 1] (0 at the
+       spar, 1 at the leading edge for ``blend_depth = 1``), the smooth step
+       ``b(xi) = xi^2 (3 - 2 xi)``, L the arc length and s_le the arc-length position of the
+       leading edge. The term ``a`` turns the nose downwards about the spar region (a
+       hinge-like rotation that fades out towards F and G); the term ``c`` tilts the rotation
+       towards the upper or the lower side.
+    3. ``b`` and its derivative vanish at ``xi = 0``, so ``dtheta`` and ``d dtheta / ds``
+       vanish at F and G: position and tangent at F are kept, the tangent at G is kept, and
+       even the curvature at F and G is unchanged (the change of curvature along the skin is
+       ``d dtheta / ds``, continuous everywhere).
+    4. The two coefficients (a, c) are found by Newton's method (finite-difference Jacobian) so
+       that (i) G keeps its y coordinate and (ii) the leading edge of the result -- its point
+       of minimum x, see :func:`leading_edge_point` -- lies `droop` below the leading edge of
+       `curve`: ``y_le(target) = y_le(curve) - droop``. G's x coordinate is free (G slides
+       along x); its change is ``result[-1, 0] - curve[-1, 0]``.
+
+    Because F is the clamp and the construction starts there, no trimming or extension near G
+    is needed. On a discrete polyline the tangent at F and G changes by ``dtheta`` of the
+    first and last segment, ``~3 a xi^2`` with xi of that segment's midpoint (~1e-12 rad for
+    :func:`leading_edge_curve` with n = 2001).
+
+    For the default airfoil and droop (6 mm) the result has ``a = 0.096 rad``, G moves
+    4.6 mm aft, and the leading edge moves 3.0 mm aft as well: a rotation that fades in
+    gradually curls the skin (more turning per length), which shortens the nose in x.
+    """
+    pts = _as_curve(curve, min_points=3)
+    droop = float(droop)
+    x_le0, y_le0, s_le0 = leading_edge_point(pts)
+    depth = x_spar - x_le0
+    if not depth > 0.0:
+        raise ValueError("the leading edge must lie in front of the spar")
+    if min(pts[0, 0], pts[-1, 0]) < x_spar - 1e-9 * depth:
+        raise ValueError("the curve's ends must not lie in front of the spar")
+
+    seg = np.diff(pts, axis=0)
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    s_mid = np.cumsum(seg_len) - 0.5 * seg_len
+    length = float(np.sum(seg_len))
+    if not 0.0 < blend_depth <= 1.0:
+        raise ValueError("blend_depth must lie in (0, 1]")
+    xi = np.clip((x_spar - 0.5 * (pts[:-1, 0] + pts[1:, 0])) / (blend_depth * depth), 0.0, 1.0)
+    blend = xi * xi * (3.0 - 2.0 * xi)
+    basis = np.stack([blend, blend * (s_mid - s_le0) / length])  # (2, m - 1)
+
+    def build(coef: FloatArray) -> FloatArray:
+        turned = _rotate_segments(seg, coef @ basis)
+        return np.vstack([pts[:1], pts[0] + np.cumsum(turned, axis=0)])
+
+    def residual(coef: FloatArray) -> FloatArray:
+        new = build(coef)
+        _, y_le, _ = leading_edge_point(new)
+        return np.array([y_le - (y_le0 - droop), new[-1, 1] - pts[-1, 1]])
+
+    coef = np.array([droop / depth, 0.0])  # rigid rotation about the spar, to first order
+    res = residual(coef)
+    h = 1e-7
+    for _ in range(max_iter):
+        if np.max(np.abs(res)) <= tol:
+            return build(coef)
+        jac = np.empty((2, 2))
+        for j in range(2):
+            step = np.zeros(2)
+            step[j] = h
+            jac[:, j] = (residual(coef + step) - residual(coef - step)) / (2.0 * h)
+        coef = coef - np.linalg.solve(jac, res)
+        res = residual(coef)
+    if np.max(np.abs(res)) <= tol:
+        return build(coef)
+    raise RuntimeError(f"droop construction did not converge (residual {res} mm)")
+
+
+def _turn_angles(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Signed angle [rad] from each segment of polyline `a` to the same segment of `b`."""
+    da, db = np.diff(a, axis=0), np.diff(b, axis=0)
+    cross = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
+    dot = da[:, 0] * db[:, 0] + da[:, 1] * db[:, 1]
+    return np.arctan2(cross, dot)
+
+
+def target_nodes(
+    airfoil: CSTAirfoil | None = None,
+    droop: float = DEFAULT_DROOP_MM,
+    n_nodes: int = 31,
+    x_spar: float = X_SPAR_MM,
+    *,
+    n_dense: int = 2001,
+) -> dict[str, FloatArray | float]:
+    """Skin nodes of the undeformed (high-speed) and the target (low-speed) shape.
+
+    Parameters
+    ----------
+    airfoil : CSTAirfoil, optional
+        Undeformed airfoil; default :func:`high_speed_airfoil`.
+    droop : float, optional
+        Nose droop of the target [mm], see :func:`drooped_curve`. Default
+        :data:`DEFAULT_DROOP_MM`.
+    n_nodes : int, optional
+        Number of skin nodes (31 in the paper: 30 beam elements).
+    x_spar : float, optional
+        Spar position, x of F and G [mm]. Default 137.5 mm.
+    n_dense : int, optional
+        Points of the dense polyline the nodes are taken from.
+
+    Returns
+    -------
+    dict
+        ``"undeformed"`` : ndarray, shape (n_nodes, 2)
+            Nodes at equal arc length on the undeformed skin, F first, G last [mm].
+        ``"target"`` : ndarray, shape (n_nodes, 2)
+            Nodes at the same arc-length positions on the drooped skin [mm]; node k of the
+            target is the image of node k of the undeformed skin.
+        ``"curve"``, ``"target_curve"`` : ndarray, shape (n_dense, 2)
+            The dense polylines both node sets were taken from [mm] (e.g. for plots).
+        ``"arc_length"`` : float
+            Skin length F -> G, the same for both shapes [mm].
+        ``"g_shift"`` : float
+            x displacement of G from the undeformed to the target shape [mm].
+        ``"max_rotation"`` : float
+            Largest change of the tangent angle along the skin between the two shapes at equal
+            arc length, from the dense polylines [rad].
+        ``"max_chord_rotation"`` : float
+            Largest rotation of a node-to-node chord (an element's rigid rotation in the beam
+            model) between the two node sets [rad].
+    """
+    af = high_speed_airfoil() if airfoil is None else airfoil
+    curve = leading_edge_curve(af, x_spar=x_spar, n=n_dense)
+    target_curve = drooped_curve(curve, droop, x_spar=x_spar)
+    undeformed = resample_equal_arc(curve, n_nodes)
+    target = resample_equal_arc(target_curve, n_nodes)
+    return {
+        "undeformed": undeformed,
+        "target": target,
+        "curve": curve,
+        "target_curve": target_curve,
+        "arc_length": arc_length(curve),
+        "g_shift": float(target_curve[-1, 0] - curve[-1, 0]),
+        "max_rotation": float(np.max(np.abs(_turn_angles(curve, target_curve)))),
+        "max_chord_rotation": float(np.max(np.abs(_turn_angles(undeformed, target)))),
+    }

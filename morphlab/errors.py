@@ -1,0 +1,52 @@
+"""The exceptions of morphlab: one small hierarchy under :class:`MorphlabError`."""
+
+from __future__ import annotations
+
+
+class MorphlabError(Exception):
+    """Base class of every error raised on purpose by morphlab."""
+
+
+class ModelError(MorphlabError, ValueError):
+    """The model description is invalid (geometry, parameters, topology, settings)."""
+
+
+class SensitivityError(MorphlabError, ValueError):
+    """A sensitivity request cannot be answered correctly (unknown method, design variable not
+    used by ``build``, response not complex-safe, topology changing with a design variable)."""
+
+
+class SolverError(MorphlabError, RuntimeError):
+    """A run failed. ``result`` holds the solution up to the last converged step.
+
+    Attributes
+    ----------
+    time, step : float, int
+        Time and step index at which the failure happened.
+    residual : float
+        Norm of the residual (or correction) when the solver gave up.
+    dominant : list of str
+        The equations with the largest residual entries, named by body/joint.
+    result : Result or None
+        The results up to the last converged step.
+    """
+
+    def __init__(self, message, *, time=None, step=None, residual=None, dominant=(), result=None):
+        super().__init__(message)
+        self.time = time
+        self.step = step
+        self.residual = residual
+        self.dominant = list(dominant)
+        self.result = result
+
+
+class ConvergenceError(SolverError):
+    """Newton–Raphson did not converge within the iteration limit."""
+
+
+class SingularMatrixError(SolverError):
+    """The saddle-point matrix is singular (redundant constraints, a body without mass, ...)."""
+
+
+class NonFiniteError(SolverError):
+    """A NaN or Inf appeared in the residual or the solution."""

@@ -1,0 +1,449 @@
+"""Declarative model description: bodies, joints, loads and profiles.
+
+A :class:`Model` only *describes* a mechanism; :func:`morphlab.compile.compile_model` turns it into
+flat arrays. Points are given in global coordinates of the initial (undeformed) configuration;
+on a beam, joints and loads sit at nodes. Values may be complex (complex-step differentiation
+through a parametric ``build(p)``); validation looks at the real parts.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ModelError
+from .profiles import Constant, Profile, as_profile
+
+_counter = itertools.count()
+
+
+def _real(x):
+    return np.real(np.asarray(x))
+
+
+def _finite_positive(value, what, owner):
+    v = _real(value)
+    if v.shape != () or not np.isfinite(v) or not v > 0:
+        raise ModelError(f"{owner}: {what} must be a finite positive number, got {value!r}")
+    return value
+
+
+def _point(at, what, owner):
+    arr = np.asarray(at)
+    if arr.shape != (2,) or not np.all(np.isfinite(_real(arr))):
+        raise ModelError(f"{owner}: {what} must be a finite point (x, y), got {at!r}")
+    return arr
+
+
+class Body:
+    """Base of all bodies. ``name`` is unique within a model."""
+
+    name: str
+    _model: Model | None = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class Ground(Body):
+    """The fixed inertial frame (no DOFs). Every model has exactly one: ``model.ground``."""
+
+    def __init__(self):
+        self.name = "ground"
+
+
+class RigidBody(Body):
+    """A rigid body with its reference point at the centre of mass.
+
+    Parameters
+    ----------
+    mass : float
+        Mass [t in the morphing model].
+    inertia : float
+        Moment of inertia about the centre of mass [t·mm²].
+    position : (2,)
+        Initial position of the centre of mass, global [mm].
+    angle : float
+        Initial angle of the body frame [rad].
+    velocity, angular_velocity :
+        Initial velocity of the centre of mass and angular velocity (must satisfy the
+        velocity-level constraints).
+    """
+
+    def __init__(self, mass, inertia, position, angle=0.0, *, velocity=(0.0, 0.0),
+                 angular_velocity=0.0, name):
+        self.name = name
+        self.mass = _finite_positive(mass, "mass", f"rigid body {name!r}")
+        self.inertia = _finite_positive(inertia, "inertia", f"rigid body {name!r}")
+        self.position = _point(position, "position", f"rigid body {name!r}")
+        if not np.isfinite(_real(angle)):
+            raise ModelError(f"rigid body {name!r}: angle must be finite, got {angle!r}")
+        self.angle = angle
+        self.velocity = _point(velocity, "velocity", f"rigid body {name!r}")
+        self.angular_velocity = angular_velocity
+
+
+class Beam(Body):
+    """A flexible body of planar Euler–Bernoulli elements along a polyline of nodes (FFRF).
+
+    Parameters
+    ----------
+    nodes : (n_node, 2)
+        Initial global node positions [mm]; element ``e`` joins nodes ``e`` and ``e + 1``.
+    E, rho : float
+        Young's modulus [MPa] and density [t/mm³].
+    thickness, width : float, optional
+        Rectangular section (in-plane thickness ``t`` and out-of-plane width ``b``) [mm]:
+        ``A = b t``, ``I = b t³/12``, fibre distance ``t/2``.
+    area, second_moment, fibre : float, optional
+        General section instead of a rectangle [mm², mm⁴, mm].
+    damping : float
+        Stiffness-proportional damping coefficient ``beta_d`` [s]: ``D = beta_d K``.
+    reference_node : int
+        Node whose frame is the body frame (its deformation DOFs are zero): the tangent frame at
+        that node. Default 0.
+
+    Notes
+    -----
+    The body frame sits at ``nodes[reference_node]`` with its x axis along the element that
+    starts there (the one that ends there for the last node).
+    """
+
+    def __init__(self, nodes, *, E, rho, thickness=None, width=None, area=None,
+                 second_moment=None, fibre=None, damping=0.0, reference_node=0, name):
+        self.name = name
+        owner = f"beam {name!r}"
+        X = np.asarray(nodes)
+        if X.ndim != 2 or X.shape[1] != 2:
+            raise ModelError(f"{owner}: nodes must be an (n, 2) array, got shape {X.shape}")
+        if X.shape[0] < 2:
+            raise ModelError(f"{owner}: needs at least two nodes, got {X.shape[0]}")
+        if not np.all(np.isfinite(_real(X))):
+            bad = int(np.argwhere(~np.isfinite(_real(X)))[0, 0])
+            raise ModelError(f"{owner}: node {bad} has a non-finite coordinate {X[bad]!r}")
+        seg = np.hypot(*np.diff(_real(X), axis=0).T)
+        scale = max(float(np.ptp(_real(X), axis=0).max()), 1e-300)
+        short = np.flatnonzero(seg <= 1e-12 * scale)
+        if short.size:
+            e = int(short[0])
+            raise ModelError(
+                f"{owner}: nodes {e} and {e + 1} coincide (element {e} has length {seg[e]:.3g});"
+                " consecutive nodes must be distinct"
+            )
+        self.nodes = X
+        self.E = _finite_positive(E, "E", owner)
+        self.rho = _finite_positive(rho, "rho", owner)
+        if thickness is not None or width is not None:
+            if thickness is None or width is None:
+                raise ModelError(f"{owner}: a rectangular section needs both thickness and width")
+            if area is not None or second_moment is not None:
+                raise ModelError(f"{owner}: give thickness/width or area/second_moment, not both")
+            _finite_positive(thickness, "thickness", owner)
+            _finite_positive(width, "width", owner)
+            area = width * thickness
+            second_moment = width * thickness**3 / 12.0
+            fibre = thickness / 2.0 if fibre is None else fibre
+        elif area is None or second_moment is None:
+            raise ModelError(
+                f"{owner}: section missing: give thickness and width, or area and second_moment"
+            )
+        self.thickness = thickness
+        self.width = width
+        self.area = _finite_positive(area, "area", owner)
+        self.second_moment = _finite_positive(second_moment, "second_moment", owner)
+        self.fibre = _finite_positive(fibre, "fibre", owner) if fibre is not None else 0.0 * area
+        d = _real(damping)
+        if not np.isfinite(d) or d < 0:
+            raise ModelError(f"{owner}: damping must be finite and >= 0, got {damping!r}")
+        self.damping = damping
+        n = X.shape[0]
+        if not (isinstance(reference_node, (int, np.integer)) and -n <= reference_node < n):
+            raise ModelError(
+                f"{owner}: reference_node must be a node index in [0, {n - 1}], "
+                f"got {reference_node!r}"
+            )
+        self.reference_node = int(reference_node) % n
+
+    @property
+    def n_nodes(self) -> int:
+        return self.nodes.shape[0]
+
+    @property
+    def n_elements(self) -> int:
+        return self.nodes.shape[0] - 1
+
+    def nearest_node(self, at) -> tuple[int, float]:
+        """Index of the node nearest to ``at`` (real parts) and its distance."""
+        d = np.hypot(*(_real(self.nodes) - _real(np.asarray(at))).T)
+        k = int(np.argmin(d))
+        return k, float(d[k])
+
+
+@dataclass(eq=False)
+class Joint:
+    """Base of joints; ``name`` is unique within a model."""
+
+    name: str
+
+
+@dataclass(eq=False)
+class Revolute(Joint):
+    """Pin joint: the material points of ``a`` and ``b`` at ``at`` coincide (2 rows)."""
+
+    a: Body
+    b: Body
+    at: np.ndarray
+
+
+@dataclass(eq=False)
+class Weld(Joint):
+    """Rigid joint: revolute plus the relative rotation at ``at`` kept at its initial value."""
+
+    a: Body
+    b: Body
+    at: np.ndarray
+
+
+@dataclass(eq=False)
+class Fix(Joint):
+    """Ground constraint on a subset of x, y and rotation of the point ``at`` of ``body``."""
+
+    body: Body
+    at: np.ndarray
+    dofs: str
+
+
+@dataclass(eq=False)
+class Drive(Joint):
+    """Prescribed rotation: ``angle(t) = angle_0 + f(t)`` of the body (or of a beam node at
+    ``at``); ``f(0)`` must be 0 so that the initial configuration is consistent."""
+
+    body: Body
+    profile: Profile
+    at: np.ndarray | None = None
+
+
+@dataclass(eq=False)
+class Force:
+    """A force of fixed global direction at a material point: ``F(t) = force * profile(t)``."""
+
+    body: Body
+    at: np.ndarray
+    force: np.ndarray
+    profile: Profile = field(default_factory=Constant)
+    name: str = ""
+
+
+@dataclass(eq=False)
+class Torque:
+    """A torque ``T(t) = magnitude * profile(t)`` on a body (and on the nodal rotation of the
+    beam node at ``at``, when given)."""
+
+    body: Body
+    magnitude: object
+    profile: Profile = field(default_factory=Constant)
+    at: np.ndarray | None = None
+    name: str = ""
+
+
+class Model:
+    """A planar flexible multibody model.
+
+    Parameters
+    ----------
+    gravity : (2,)
+        Gravitational acceleration [mm/s² in the morphing units], default none.
+    name : str
+        Used in messages and saved files.
+
+    Examples
+    --------
+    >>> import morphlab as ml
+    >>> m = ml.Model(gravity=(0.0, -9.81e3))
+    >>> link = m.add_rigid_body(mass=1e-3, inertia=1.0, position=(50.0, 0.0), name="link")
+    >>> j = m.add_revolute(m.ground, link, at=(0.0, 0.0))
+    """
+
+    def __init__(self, gravity=(0.0, 0.0), name: str = "model"):
+        self.gravity = _point(gravity, "gravity", f"model {name!r}")
+        self.name = name
+        self.ground = Ground()
+        self.ground._model = self
+        self.bodies: list[Body] = []
+        self.joints: list[Joint] = []
+        self.forces: list[Force] = []
+        self.torques: list[Torque] = []
+
+    # ---- bodies
+    def _register(self, body: Body) -> Body:
+        if not isinstance(body.name, str) or not body.name:
+            raise ModelError(f"bodies need a non-empty string name, got {body.name!r}")
+        if body.name == "ground" or any(b.name == body.name for b in self.bodies):
+            raise ModelError(f"model {self.name!r}: a body named {body.name!r} already exists")
+        if body._model is not None and body._model is not self:
+            raise ModelError(f"body {body.name!r} already belongs to another model")
+        body._model = self
+        self.bodies.append(body)
+        return body
+
+    def add_body(self, body: Body) -> Body:
+        """Add a ready-made :class:`RigidBody` or :class:`Beam`."""
+        if not isinstance(body, (RigidBody, Beam)):
+            raise ModelError(f"add_body expects a RigidBody or Beam, got {type(body).__name__}")
+        return self._register(body)
+
+    def add_beam(self, nodes, *, E, rho, thickness=None, width=None, area=None,
+                 second_moment=None, fibre=None, damping=0.0, reference_node=0,
+                 name=None) -> Beam:
+        """Add a flexible :class:`Beam` (see there for the parameters and units)."""
+        name = name or f"beam{len(self.bodies)}"
+        return self._register(Beam(nodes, E=E, rho=rho, thickness=thickness, width=width,
+                                   area=area, second_moment=second_moment, fibre=fibre,
+                                   damping=damping, reference_node=reference_node, name=name))
+
+    def add_rigid_body(self, *, mass, inertia, position, angle=0.0, velocity=(0.0, 0.0),
+                       angular_velocity=0.0, name=None) -> RigidBody:
+        """Add a :class:`RigidBody` (reference point = centre of mass)."""
+        name = name or f"body{len(self.bodies)}"
+        return self._register(RigidBody(mass, inertia, position, angle, velocity=velocity,
+                                         angular_velocity=angular_velocity, name=name))
+
+    def body(self, name: str) -> Body:
+        """The body called ``name`` (``"ground"`` for the ground)."""
+        if name == "ground":
+            return self.ground
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        known = ", ".join(repr(b.name) for b in self.bodies) or "none"
+        raise ModelError(f"model {self.name!r} has no body {name!r} (bodies: {known})")
+
+    # ---- joints
+    def _own(self, body, what):
+        if isinstance(body, str):
+            body = self.body(body)
+        if not isinstance(body, Body):
+            raise ModelError(f"{what}: expected a body or a body name, got {body!r}")
+        if body is not self.ground and body not in self.bodies:
+            raise ModelError(f"{what}: body {body.name!r} is not part of model {self.name!r}")
+        return body
+
+    def _joint_name(self, name, prefix):
+        name = name or f"{prefix}{len(self.joints)}"
+        if any(j.name == name for j in self.joints):
+            raise ModelError(f"model {self.name!r}: a joint named {name!r} already exists")
+        return name
+
+    def _check_point_on(self, body, at, what):
+        at = _point(at, "at", what)
+        if isinstance(body, Beam):
+            k, dist = body.nearest_node(at)
+            size = float(np.ptp(_real(body.nodes), axis=0).max())
+            if dist > 1e-6 * max(size, 1.0):
+                raise ModelError(
+                    f"{what}: point {tuple(np.round(_real(at), 6))} is not at a node of beam "
+                    f"{body.name!r}; nearest is node {k} at distance {dist:.6g}"
+                )
+        return at
+
+    def add_revolute(self, a, b, *, at, name=None) -> Revolute:
+        """Pin ``a`` and ``b`` together at the global point ``at`` (a node if on a beam)."""
+        name = self._joint_name(name, "revolute")
+        a, b = self._own(a, f"revolute {name!r}"), self._own(b, f"revolute {name!r}")
+        if a is b:
+            raise ModelError(f"revolute {name!r}: connects body {a.name!r} to itself")
+        for body in (a, b):
+            at = self._check_point_on(body, at, f"revolute {name!r}")
+        j = Revolute(name, a, b, at)
+        self.joints.append(j)
+        return j
+
+    def add_weld(self, a, b, *, at, name=None) -> Weld:
+        """Rigidly connect ``a`` and ``b`` at ``at`` (position and relative angle held)."""
+        name = self._joint_name(name, "weld")
+        a, b = self._own(a, f"weld {name!r}"), self._own(b, f"weld {name!r}")
+        if a is b:
+            raise ModelError(f"weld {name!r}: connects body {a.name!r} to itself")
+        for body in (a, b):
+            at = self._check_point_on(body, at, f"weld {name!r}")
+        j = Weld(name, a, b, at)
+        self.joints.append(j)
+        return j
+
+    def add_fix(self, body, *, at, dofs="xyr", name=None) -> Fix:
+        """Fix any of ``x``, ``y``, ``r`` (rotation) of the point ``at`` of ``body`` to ground."""
+        name = self._joint_name(name, "fix")
+        body = self._own(body, f"fix {name!r}")
+        if body is self.ground:
+            raise ModelError(f"fix {name!r}: the ground is fixed already")
+        if not isinstance(dofs, str) or not dofs or set(dofs) - set("xyr") or len(set(dofs)) != len(
+            dofs
+        ):
+            raise ModelError(
+                f"fix {name!r}: dofs must be a non-empty string of distinct letters from 'x', "
+                f"'y', 'r', got {dofs!r}"
+            )
+        at = self._check_point_on(body, at, f"fix {name!r}")
+        j = Fix(name, body, at, "".join(sorted(dofs, key="xyr".index)))
+        self.joints.append(j)
+        return j
+
+    def add_drive(self, body, *, angle, at=None, name=None) -> Drive:
+        """Prescribe the rotation of ``body`` (or of the beam node at ``at``):
+        ``angle_0 + angle(t)``; ``angle`` is a Profile or a callable with ``angle(0) = 0``."""
+        name = self._joint_name(name, "drive")
+        body = self._own(body, f"drive {name!r}")
+        if body is self.ground:
+            raise ModelError(f"drive {name!r}: cannot drive the ground")
+        prof = as_profile(angle, f"drive {name!r}")
+        f0 = _real(prof.value(0.0))
+        if abs(f0) > 1e-12:
+            raise ModelError(
+                f"drive {name!r}: angle(0) must be 0 (the drive is relative to the initial angle),"
+                f" got {f0:.6g}"
+            )
+        if at is not None:
+            at = self._check_point_on(body, at, f"drive {name!r}")
+        elif isinstance(body, Beam):
+            at = body.nodes[body.reference_node]
+        j = Drive(name, body, prof, at)
+        self.joints.append(j)
+        return j
+
+    # ---- loads
+    def add_force(self, body, *, at, force, profile=None, name=None) -> Force:
+        """Apply ``force * profile(t)`` (global direction) at the point ``at`` of ``body``."""
+        name = name or f"force{len(self.forces)}"
+        body = self._own(body, f"force {name!r}")
+        if body is self.ground:
+            raise ModelError(f"force {name!r}: cannot load the ground")
+        at = self._check_point_on(body, at, f"force {name!r}")
+        f = _point(force, "force", f"force {name!r}")
+        ld = Force(body, at, f, as_profile(profile, f"force {name!r}"), name)
+        self.forces.append(ld)
+        return ld
+
+    def add_torque(self, body, magnitude, *, profile=None, at=None, name=None) -> Torque:
+        """Apply a torque ``magnitude * profile(t)`` [N·mm] to ``body`` (at the beam node ``at``
+        when given: the torque then also works on that node's rotation)."""
+        name = name or f"torque{len(self.torques)}"
+        body = self._own(body, f"torque {name!r}")
+        if body is self.ground:
+            raise ModelError(f"torque {name!r}: cannot load the ground")
+        mag = _real(magnitude)
+        if mag.shape != () or not math.isfinite(float(mag)):
+            raise ModelError(
+                f"torque {name!r}: magnitude must be a finite number, got {magnitude!r}"
+            )
+        if at is not None:
+            at = self._check_point_on(body, at, f"torque {name!r}")
+        tq = Torque(body, magnitude, as_profile(profile, f"torque {name!r}"), at, name)
+        self.torques.append(tq)
+        return tq
+
+    def __repr__(self) -> str:
+        return (f"Model({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
+                f"{len(self.forces)} forces, {len(self.torques)} torques)")

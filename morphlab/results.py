@@ -1,0 +1,213 @@
+"""Simulation results: stacked histories, accessors by name, energy, statistics.
+
+Every accessor is written with NumPy operations that keep complex values (``cos``, ``sin``,
+products, sums), so the response functions built on them can be differentiated by complex step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .compile import System
+from .errors import ModelError
+from .model import Beam, RigidBody
+
+
+@dataclass
+class Result:
+    """Histories of one run.
+
+    Attributes
+    ----------
+    t : (n_t,)
+        Times [s].
+    q, v, a : (n_t, n_dof)
+        Generalized coordinates, velocities, accelerations.
+    lam : (n_t, n_con)
+        Lagrange multipliers (constraint forces/torques of each row).
+    newton_iterations : (n_t,) int
+        Newton iterations (= factorizations) of each step; 1 for the initial solve.
+    constraint_violation, velocity_violation : (n_t,)
+        ``max |Phi|`` and ``max |Phi'|`` after each step.
+    status, message : str
+        ``"ok"`` or ``"failed"`` and a readable sentence.
+    """
+
+    system: System
+    settings: object
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    lam: np.ndarray
+    newton_iterations: np.ndarray
+    constraint_violation: np.ndarray
+    velocity_violation: np.ndarray
+    status: str = "ok"
+    message: str = ""
+    n_factorizations: int = 0
+    wall_time: float = 0.0
+    newton_history: list = field(default_factory=list, repr=False)
+    scale: float = 1.0
+
+    # ---- coordinates by name
+    @property
+    def n_t(self) -> int:
+        return self.t.shape[0]
+
+    def dof(self, name: str) -> np.ndarray:
+        """History of the coordinate called ``name`` (e.g. ``"link.theta"``), (n_t,)."""
+        try:
+            i = self.system.dof_names.index(name)
+        except ValueError:
+            raise ModelError(f"no coordinate {name!r}; e.g. {self.system.dof_names[:4]}") from None
+        return self.q[:, i]
+
+    def reference(self, body: str):
+        """``(R (n_t, 2), theta (n_t,))`` of a body's reference frame."""
+        info = self.system.body(body)
+        return self.q[:, info.ref[:2]], self.q[:, info.ref[2]]
+
+    def _nodal(self, body: str, arr: np.ndarray):
+        info = self.system.body(body)
+        if info.kind != "beam":
+            raise ModelError(f"body {body!r} is not a beam")
+        nd = info.node_dofs
+        out = np.zeros((arr.shape[0],) + nd.shape, dtype=arr.dtype)
+        mask = nd >= 0
+        out[:, mask] = arr[:, nd[mask]]
+        return info, out
+
+    def node_positions(self, body: str) -> np.ndarray:
+        """Global node positions of a beam, (n_t, n_nodes, 2)."""
+        info, w = self._nodal(body, self.q)
+        R, th = self.reference(body)
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        ux = info.X[None, :, 0] + w[:, :, 0]
+        uy = info.X[None, :, 1] + w[:, :, 1]
+        return np.stack([R[:, None, 0] + c * ux - s * uy, R[:, None, 1] + s * ux + c * uy],
+                        axis=-1)
+
+    def node_rotations(self, body: str) -> np.ndarray:
+        """Absolute rotation ``theta + phi_k`` of every node of a beam relative to its initial
+        value, (n_t, n_nodes)."""
+        info, w = self._nodal(body, self.q)
+        _, th = self.reference(body)
+        return th[:, None] - info.angle0 + w[:, :, 2]
+
+    def deformation(self, body: str) -> np.ndarray:
+        """Nodal deformation ``(u, v, phi)`` of a beam in its body frame, (n_t, n_nodes, 3)."""
+        return self._nodal(body, self.q)[1]
+
+    def point_positions(self, body: str, at) -> np.ndarray:
+        """Trajectory of the material point initially at ``at`` (a node on a beam), (n_t, 2)."""
+        b = self.system.model.body(body)
+        info = self.system.body(body)
+        R, th = self.reference(body)
+        if isinstance(b, Beam):
+            k, dist = b.nearest_node(at)
+            if dist > 1e-6 * max(self.system.length_scale, 1.0):
+                raise ModelError(f"point {tuple(np.real(at))} is not at a node of beam {body!r} "
+                                 f"(nearest node {k} at distance {dist:.3g})")
+            return self.node_positions(body)[:, k, :]
+        if not isinstance(b, RigidBody):
+            raise ModelError(f"body {body!r} has no material points")
+        c0, s0 = np.cos(info.angle0), np.sin(info.angle0)
+        d = np.asarray(at) - b.position
+        u0 = np.array([c0 * d[0] + s0 * d[1], -s0 * d[0] + c0 * d[1]])
+        c, s = np.cos(th), np.sin(th)
+        return np.stack([R[:, 0] + c * u0[0] - s * u0[1], R[:, 1] + s * u0[0] + c * u0[1]],
+                        axis=-1)
+
+    def stress(self, body: str) -> np.ndarray:
+        """Normal stress at both ends and both outer fibres of every element of a beam,
+        (n_t, n_elements, 2 ends, 2 fibres) [MPa in the morphing units].
+
+        Fibre 0 lies left of the element direction (node k -> k+1), fibre 1 right of it.
+        """
+        info = self.system.body(body)
+        if info.kind != "beam":
+            raise ModelError(f"body {body!r} is not a beam; stress is defined for beams")
+        sl = info.elements
+        ed = self.system.elem_dofs[sl]
+        B = self.system.elem_B[sl]
+        d = np.where(ed[None] >= 0, self.q[:, np.maximum(ed, 0)], 0.0)
+        return np.einsum("eijk,tek->teij", B, d)
+
+    # ---- energy
+    @property
+    def energy(self) -> dict:
+        """Energy balance over time: ``kinetic``, ``strain``, ``gravity`` (potential),
+        ``damping`` (dissipated), ``work`` (of applied forces and torques), and ``total`` =
+        kinetic + strain + gravity; each (n_t,). For a conservative system ``total - work``
+        is constant."""
+        return energy(self)
+
+    def summary(self) -> str:
+        """One paragraph with the run's statistics."""
+        it = self.newton_iterations[1:]
+        return (f"{self.status}: {self.message}; {self.n_t - 1} steps of {self.settings.h:.3g} s, "
+                f"Newton iterations per step {it.mean() if it.size else 0:.2f} "
+                f"(max {it.max() if it.size else 0}), {self.n_factorizations} factorizations, "
+                f"max |Phi| {self.constraint_violation.max():.3g}, "
+                f"max |Phi'| {self.velocity_violation.max():.3g}, wall {self.wall_time:.3g} s")
+
+
+def energy(res: Result) -> dict:
+    """Kinetic, strain and gravitational energy, damping dissipation and external work."""
+    from .kernels.assemble import add_residual
+    from .solver import kernel_arrays
+
+    s = res.system
+    S = kernel_arrays(s)
+    n, n_dof = s.n, s.n_dof
+    zeros_c = np.zeros(s.n_con, dtype=s.dtype)
+    n_t = res.n_t
+    kin = np.zeros(n_t)
+    strain = np.zeros(n_t)
+    grav = np.zeros(n_t)
+    power_ext = np.zeros(n_t)
+    power_damp = np.zeros(n_t)
+    ed = s.elem_dofs
+    for i in range(n_t):
+        q, v = res.q[i], res.v[i]
+        c, cd, cdd, F, T = (np.ascontiguousarray(x, dtype=s.dtype) for x in s.time_arrays(res.t[i]))
+        # M v through the inertia term of the residual kernel (weights 1, 0)
+        R = np.zeros(n, dtype=s.dtype)
+        zero = np.zeros(n_dof, dtype=s.dtype)
+        add_residual(S, q, zero, v, zeros_c, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, c, cd, cdd,
+                     F * 0, T * 0, n_dof, R)
+        kin[i] = 0.5 * np.real(v @ R[:n_dof])
+        d = np.where(ed >= 0, q[np.maximum(ed, 0)], 0.0)
+        dv = np.where(ed >= 0, v[np.maximum(ed, 0)], 0.0)
+        Kd = np.einsum("eij,ej->ei", s.elem_K, d)
+        strain[i] = 0.5 * np.real(np.sum(d * Kd))
+        beta = s.body_damp[s.elem_body]
+        power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
+        # external power: -Q_ext . v from the load kernel alone
+        Rl = np.zeros(n, dtype=s.dtype)
+        from .kernels.joints import load_residual
+
+        load_residual(q, 1.0, F, s.load_dofs, np.ascontiguousarray(s.load_u0), T, s.torque_dofs,
+                      Rl)
+        power_ext[i] = -np.real(v @ Rl[:n_dof])
+        # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
+        for b in range(s.body_ref.shape[0]):
+            ref = s.body_ref[b]
+            m = np.real(s.body_scal[b, 0])
+            cu = np.real(s.body_scal[b, 1:3]).astype(float)
+            f0, f1 = s.flex_off[b], s.flex_off[b + 1]
+            if f1 > f0:
+                cu = cu + np.real(s.flex_IS[f0:f1].T @ q[s.flex_dof[f0:f1]])
+            th = np.real(q[ref[2]])
+            Acu = np.array([np.cos(th) * cu[0] - np.sin(th) * cu[1],
+                            np.sin(th) * cu[0] + np.cos(th) * cu[1]])
+            r = np.real(q[ref[:2]]) * m + Acu
+            grav[i] -= float(np.real(s.gravity) @ r)
+    dtt = np.diff(res.t)
+    work = np.concatenate([[0.0], np.cumsum(0.5 * (power_ext[1:] + power_ext[:-1]) * dtt)])
+    diss = np.concatenate([[0.0], np.cumsum(0.5 * (power_damp[1:] + power_damp[:-1]) * dtt)])
+    return {"kinetic": kin, "strain": strain, "gravity": grav, "damping": diss, "work": work,
+            "total": kin + strain + grav}

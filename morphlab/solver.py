@@ -1,0 +1,599 @@
+"""Generalized-alpha time integration with Newton–Raphson on the sparse saddle-point system.
+
+Unknowns of a step are ``z = (a, lam/scale)`` with ``a = q''_{n+1}``; positions and velocities
+follow from the Newmark update (paper eq. 10–11)::
+
+    q_{n+1} = q_n + h q'_n + (1/2 - beta) h² a_n + beta h² a
+    q'_{n+1} = q'_n + (1 - gamma) h a_n + gamma h a
+
+The residual (paper eq. 25–26) is the weighted sum of one state's terms at ``n+1`` and at ``n``::
+
+    R = E(s_{n+1}; 1-alpha_m, 1-alpha_f, 1-w_m, 1-w_f) + E(s_n; alpha_m, alpha_f, w_m, w_f)
+
+with ``E`` the kernel :func:`morphlab.kernels.assemble.add_residual`. The paper weights the
+constraint rows with ``(w_m, w_f) = (alpha_m, alpha_f)`` (``constraint_form="paper"``); the
+alternative ``"endpoint"`` enforces the acceleration constraint at ``t_{n+1}`` exactly
+(``w_m = w_f = 0``). The Newton matrix ``dR/dz`` is exact (eq. 30–33 with every derivative
+term), so Newton converges quadratically and the direct sensitivities are exact.
+
+The acceleration-level (index-1) constraints drift at position level. A Baumgarte-type term,
+``F_c -> F_c - b1 Phi' - b0 Phi`` with ``b1 = 2 xi omega`` and ``b0 = omega²``, is part of the
+residual (and so of its derivatives). ``omega = stabilization / h``; 0 switches it off.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .compile import System, compile_model
+from .errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
+from .kernels.assemble import add_residual, fill_matrix
+from .model import Model
+
+
+@dataclass(frozen=True)
+class GeneralizedAlpha:
+    """Coefficients of the generalized-alpha method (Chung & Hulbert 1993) from ``rho_inf``.
+
+    ``alpha_m = (2 rho - 1)/(rho + 1)``, ``alpha_f = rho/(rho + 1)``,
+    ``gamma = 1/2 - alpha_m + alpha_f``, ``beta = (1 - alpha_m + alpha_f)²/4``: second order,
+    unconditionally stable for linear problems, spectral radius ``rho_inf`` at infinite
+    frequency. ``rho_inf = 1`` is the trapezoidal rule (no dissipation).
+    """
+
+    rho_inf: float = 0.8
+
+    def __post_init__(self):
+        r = self.rho_inf
+        if not (isinstance(r, (int, float)) and 0.0 <= r <= 1.0):
+            raise ModelError(f"rho_inf must be a number in [0, 1], got {r!r}")
+
+    @property
+    def alpha_m(self) -> float:
+        return (2.0 * self.rho_inf - 1.0) / (self.rho_inf + 1.0)
+
+    @property
+    def alpha_f(self) -> float:
+        return self.rho_inf / (self.rho_inf + 1.0)
+
+    @property
+    def gamma(self) -> float:
+        return 0.5 - self.alpha_m + self.alpha_f
+
+    @property
+    def beta(self) -> float:
+        return 0.25 * (1.0 - self.alpha_m + self.alpha_f) ** 2
+
+    order = 2
+
+
+class State(NamedTuple):
+    """Solution at one time: ``t``, ``q`` (n_dof), ``v`` = q', ``a`` = q'', ``lam`` (n_con)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    lam: np.ndarray
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Solver settings (all keyword arguments of :func:`simulate`)."""
+
+    t_end: float
+    dt: float
+    rho_inf: float = 0.8
+    tol: float = 1e-10
+    max_iter: int = 12
+    stabilization: float = 0.5
+    stabilization_damping: float = 1.0
+    constraint_form: str = "paper"
+    t_start: float = 0.0
+
+    def validate(self) -> None:
+        for name in ("t_end", "dt"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not np.isfinite(v) or not v > 0:
+                raise ModelError(f"{name} must be a finite positive number, got {v!r}")
+        if self.dt > self.t_end - self.t_start:
+            raise ModelError(f"dt={self.dt} is larger than the simulated span "
+                             f"{self.t_end - self.t_start}")
+        GeneralizedAlpha(self.rho_inf)
+        if not (isinstance(self.tol, float) and 0 < self.tol < 1):
+            raise ModelError(f"tol must be a float in (0, 1), got {self.tol!r}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ModelError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
+        if not (np.isfinite(self.stabilization) and self.stabilization >= 0):
+            raise ModelError(f"stabilization must be >= 0, got {self.stabilization!r}")
+        if self.constraint_form not in ("paper", "endpoint"):
+            raise ModelError(f"constraint_form must be 'paper' or 'endpoint', got "
+                             f"{self.constraint_form!r}")
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps: ``ceil((t_end - t_start)/dt)`` (the step is then shortened to fit)."""
+        return int(np.ceil((self.t_end - self.t_start) / self.dt - 1e-9))
+
+    @property
+    def h(self) -> float:
+        """The step actually used, ``(t_end - t_start) / n_steps``."""
+        return (self.t_end - self.t_start) / self.n_steps
+
+
+def kernel_arrays(system: System, dtype=None) -> tuple:
+    """The tuple ``S`` of system arrays for :mod:`morphlab.kernels.assemble` (cast to dtype)."""
+    dt = np.dtype(dtype) if dtype is not None else system.dtype
+
+    def f(x):
+        return np.ascontiguousarray(x, dtype=dt)
+
+    s = system
+    return (f(s.gravity), s.body_ref, f(s.body_scal), f(s.body_damp), s.flex_off, s.flex_dof,
+            f(s.flex_IS), f(s.flex_I0S), f(s.flex_I0IS), s.elem_body, s.elem_fdof, f(s.elem_M),
+            f(s.elem_St), f(s.elem_K), s.con_kind, s.con_dofs, f(s.con_u0), s.load_dofs,
+            f(s.load_u0), s.torque_dofs, s.border_off, s.border_map, s.elem_map, s.con_map_row,
+            s.con_map_col, s.con_map_H, s.load_map)
+
+
+@dataclass
+class StepCoefficients:
+    """Weights of one residual evaluation: new level (``n+1``) and old level (``n``)."""
+
+    h: float
+    beta: float
+    gamma: float
+    new: tuple  # (wm, wl, wf, wcm, wcf)
+    old: tuple | None
+
+    @property
+    def bh2(self) -> float:
+        return self.beta * self.h * self.h
+
+    @property
+    def gh(self) -> float:
+        return self.gamma * self.h
+
+
+class Stepper:
+    """Residual, Newton matrix and Newton iteration of one compiled system.
+
+    Stateless with respect to the time history: every method takes the states it needs. The
+    sensitivity strategies call :meth:`residual` with perturbed inputs (complex step or finite
+    differences): one residual, one set of kernels.
+    """
+
+    def __init__(self, system: System, settings: Settings, scale: float | None = None):
+        self.system = system
+        self.settings = settings
+        self.method = GeneralizedAlpha(settings.rho_inf)
+        self.S = kernel_arrays(system)
+        self.dtype = system.dtype
+        self.n_dof = system.n_dof
+        self.n = system.n
+        h = settings.h
+        om = settings.stabilization / h if settings.stabilization > 0 else 0.0
+        self.b1 = 2.0 * settings.stabilization_damping * om
+        self.b0 = om * om
+        g = self.method
+        w_m, w_f = (g.alpha_m, g.alpha_f) if settings.constraint_form == "paper" else (0.0, 0.0)
+        self.step_coef = StepCoefficients(
+            h, g.beta, g.gamma,
+            (1 - g.alpha_m, 1 - g.alpha_m, 1 - g.alpha_f, 1 - w_m, 1 - w_f),
+            (g.alpha_m, g.alpha_m, g.alpha_f, w_m, w_f))
+        self.init_coef = StepCoefficients(0.0, g.beta, g.gamma, (1.0, 1.0, 1.0, 1.0, 1.0), None)
+        self.data = np.zeros(system.nnz, dtype=self.dtype)
+        self.scale = scale if scale is not None else self._choose_scale()
+        self.n_factorizations = 0
+
+    # ---- building blocks
+    def _choose_scale(self) -> float:
+        """Scale of constraint rows / multiplier columns: the median magnitude of the diagonal
+        of the equation block of the step matrix at the initial state (real part, fixed for the
+        run and every sensitivity of it)."""
+        s = self.system
+        z0 = np.zeros(self.n, dtype=self.dtype)
+        self._fill(z0, s.q0, s.v0, 0.0, self.step_coef, scale=1.0)
+        A = self.matrix()
+        d = np.abs(np.real(A.diagonal()[: self.n_dof]))
+        d = d[d > 0]
+        return float(np.median(d)) if d.size else 1.0
+
+    def predict(self, st: State, h: float):
+        """Newmark predictors ``(q_hat, v_hat)`` with ``q = q_hat + beta h² a``."""
+        g = self.method
+        qh = st.q + h * st.v + (0.5 - g.beta) * h * h * st.a
+        vh = st.v + (1.0 - g.gamma) * h * st.a
+        return qh, vh
+
+    def history(self, st: State, coef: StepCoefficients, system_S=None, dtype=None):
+        """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step)."""
+        S = self.S if system_S is None else system_S
+        dt = self.dtype if dtype is None else dtype
+        R = np.zeros(self.n, dtype=dt)
+        if coef.old is None:
+            return R
+        c, cd, cdd, F, T = self.time_arrays(st.t, dt)
+        wm, wl, wf, wcm, wcf = coef.old
+        add_residual(S, st.q.astype(dt), st.v.astype(dt), st.a.astype(dt), st.lam.astype(dt),
+                     wm, wl, wf, wcm, wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T,
+                     self.n_dof, R)
+        return R
+
+    def time_arrays(self, t, dtype=None, system=None):
+        sysm = self.system if system is None else system
+        dt = self.dtype if dtype is None else dtype
+        return tuple(np.ascontiguousarray(x, dtype=dt) for x in sysm.time_arrays(t))
+
+    def residual(self, z, qh, vh, t1, coef: StepCoefficients, R_hist, system_S=None,
+                 time_arrays=None):
+        """Residual of the step at ``z = (a, lam/scale)`` (n,)."""
+        S = self.S if system_S is None else system_S
+        dt = np.result_type(z.dtype, qh.dtype, R_hist.dtype)
+        a = z[: self.n_dof]
+        lam = z[self.n_dof:] * self.scale
+        q = qh + coef.bh2 * a
+        v = vh + coef.gh * a
+        c, cd, cdd, F, T = time_arrays if time_arrays is not None else self.time_arrays(t1, dt)
+        R = R_hist.astype(dt, copy=True)
+        wm, wl, wf, wcm, wcf = coef.new
+        add_residual(S, q.astype(dt), v.astype(dt), a.astype(dt), lam.astype(dt), wm, wl, wf, wcm,
+                     wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T, self.n_dof, R)
+        return R
+
+    def _fill(self, z, qh, vh, t1, coef, scale=None):
+        a = z[: self.n_dof]
+        sc = self.scale if scale is None else scale
+        lam = z[self.n_dof:] * sc
+        q = qh + coef.bh2 * a
+        v = vh + coef.gh * a
+        F = np.ascontiguousarray(self.system.time_arrays(t1)[3], dtype=self.dtype)
+        wm, wl, wf, wcm, wcf = coef.new
+        fill_matrix(self.S, q, v, a, lam, wm, wl, wf, wcm, wcf, coef.bh2, coef.gh, sc, self.b0,
+                    self.b1, F, self.data)
+
+    def matrix(self) -> sp.csc_matrix:
+        """The Newton matrix last filled, as a CSC matrix (shares ``data``)."""
+        return sp.csc_matrix((self.data, self.system.indices, self.system.indptr),
+                             shape=(self.n, self.n))
+
+    def factor(self, z, qh, vh, t1, coef):
+        """Fill and factor the exact Newton matrix at ``z``."""
+        self._fill(z, qh, vh, t1, coef)
+        try:
+            lu = splu(self.matrix(), permc_spec="COLAMD")
+        except RuntimeError as exc:
+            raise SingularMatrixError(
+                f"singular saddle-point matrix at t={t1:.6g}: {exc}. Look for redundant joints, "
+                "a body without mass in its free directions, or a mechanism locked in a "
+                "singular position",
+                time=t1,
+            ) from None
+        self.n_factorizations += 1
+        return lu
+
+    def dominant(self, R, k=3) -> list[str]:
+        """Names of the ``k`` equations with the largest residual entries."""
+        names = self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
+        idx = np.argsort(-np.abs(R))[:k]
+        return [f"{names[i]} ({abs(R[i]):.3g})" for i in idx]
+
+    def newton(self, z, qh, vh, t1, coef, R_hist, step):
+        """Newton–Raphson from ``z``. Returns ``(z, lu, n_iter, history)``; ``lu`` is the last
+        factorization (taken at the iterate before the final correction)."""
+        s = self.settings
+        L = self.system.length_scale
+        hist = []
+        lu = None
+        for it in range(1, s.max_iter + 1):
+            R = self.residual(z, qh, vh, t1, coef, R_hist)
+            if not np.all(np.isfinite(R)):
+                raise NonFiniteError(
+                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}); "
+                    f"largest entries: {', '.join(self.dominant(np.nan_to_num(R)))}",
+                    time=t1, step=step, residual=float("nan"))
+            lu = self.factor(z, qh, vh, t1, coef)
+            dz = lu.solve(-R)
+            if not np.all(np.isfinite(dz)):
+                raise NonFiniteError(f"non-finite Newton correction at t={t1:.6g} (step {step})",
+                                     time=t1, step=step, residual=float(np.linalg.norm(R)))
+            z = z + dz
+            if coef.h == 0.0:
+                # linear in z (consistent initial accelerations): one solve is exact
+                err = 0.0
+            else:
+                err = coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
+            hist.append((float(np.linalg.norm(R)), err))
+            if err <= s.tol:
+                return z, lu, it, hist
+        R = self.residual(z, qh, vh, t1, coef, R_hist)
+        raise ConvergenceError(
+            f"Newton did not converge at t={t1:.6g} (step {step}) in {s.max_iter} iterations: "
+            f"position correction {err:.3g} of the model size (tol {s.tol:.1g}), residual norm "
+            f"{np.linalg.norm(R):.3g}; dominant equations: {', '.join(self.dominant(R))}",
+            time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
+
+    # ---- the two kinds of solve
+    def initial(self, t0, q0, v0):
+        """Consistent initial accelerations and multipliers: one saddle-point solve at ``t0``."""
+        n0 = np.zeros(self.n, dtype=self.dtype)
+        R_hist = np.zeros(self.n, dtype=self.dtype)
+        z, lu, it, hist = self.newton(n0, q0, v0, t0, self.init_coef, R_hist, 0)
+        a = z[: self.n_dof]
+        return State(t0, q0.copy(), v0.copy(), a, z[self.n_dof:] * self.scale), lu, z
+
+    def step(self, st: State, t1: float, step: int):
+        """Advance one step from ``st`` to ``t1``. Returns ``(state, lu, n_iter, z, qh, vh,
+        R_hist)``."""
+        coef = self.step_coef
+        qh, vh = self.predict(st, coef.h)
+        R_hist = self.history(st, coef)
+        z0 = np.concatenate([st.a, st.lam / self.scale])
+        z, lu, it, hist = self.newton(z0, qh, vh, t1, coef, R_hist, step)
+        a = z[: self.n_dof]
+        new = State(t1, qh + coef.bh2 * a, vh + coef.gh * a, a, z[self.n_dof:] * self.scale)
+        return new, lu, it, z, qh, vh, R_hist, hist
+
+
+@dataclass
+class StepInfo:
+    """What a step observer receives after each converged step (and once for the initial
+    solve, with ``n == 0`` and ``prev is None``)."""
+
+    n: int
+    prev: State | None
+    state: State
+    lu: object
+    z: np.ndarray
+    qh: np.ndarray
+    vh: np.ndarray
+    coef: StepCoefficients
+    stepper: Stepper
+    newton_history: list = field(default_factory=list)
+
+
+def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
+              progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None):
+    """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
+
+    ``observer(info: StepInfo)`` is called after the initial solve and after every converged
+    step; the sensitivity strategies use it. On failure the raised :class:`SolverError` carries
+    the results up to the last converged step as ``error.result``.
+    """
+    from .results import Result
+
+    settings.validate()
+    stepper = Stepper(system, settings, scale=scale)
+    n_steps = settings.n_steps
+    h = settings.h
+    n_dof, n_con = system.n_dof, system.n_con
+    dt = system.dtype
+    t = settings.t_start + h * np.arange(n_steps + 1)
+    Q = np.zeros((n_steps + 1, n_dof), dtype=dt)
+    V = np.zeros_like(Q)
+    A = np.zeros_like(Q)
+    LAM = np.zeros((n_steps + 1, n_con), dtype=dt)
+    iters = np.zeros(n_steps + 1, dtype=np.int64)
+    viol = np.zeros(n_steps + 1)
+    vviol = np.zeros(n_steps + 1)
+    histories: list = []
+    t_wall = _time.perf_counter()
+
+    def make_result(n_done, status, message):
+        sl = slice(0, n_done + 1)
+        return Result(system=system, settings=settings, t=t[sl].copy(), q=Q[sl].copy(),
+                      v=V[sl].copy(), a=A[sl].copy(), lam=LAM[sl].copy(),
+                      newton_iterations=iters[sl].copy(), constraint_violation=viol[sl].copy(),
+                      velocity_violation=vviol[sl].copy(), status=status, message=message,
+                      n_factorizations=stepper.n_factorizations,
+                      wall_time=_time.perf_counter() - t_wall, newton_history=histories,
+                      scale=stepper.scale)
+
+    def record(n, st, it):
+        Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
+        iters[n] = it
+        if n_con:
+            phi, phid = system.constraint_violation(st.q, st.v, st.t)
+            viol[n] = float(np.max(np.abs(phi)))
+            vviol[n] = float(np.max(np.abs(phid)))
+
+    from .errors import SolverError
+
+    q_init = system.q0 if q0 is None else q0
+    v_init = system.v0 if v0 is None else v0
+    try:
+        st, lu, z = stepper.initial(t[0], q_init.astype(dt), v_init.astype(dt))
+    except SolverError as err:
+        err.result = make_result(-1, "failed", str(err))
+        raise
+    record(0, st, 1)
+    if observer is not None:
+        observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper))
+    report = progress if callable(progress) else (_print_progress if progress else None)
+    for n in range(1, n_steps + 1):
+        try:
+            new, lu, it, z, qh, vh, R_hist, hist = stepper.step(st, float(t[n]), n)
+        except SolverError as err:
+            err.result = make_result(n - 1, "failed", str(err))
+            raise
+        histories.append(hist)
+        record(n, new, it)
+        if observer is not None:
+            observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper, hist))
+        st = new
+        if report is not None:
+            report(n, n_steps, float(t[n]))
+    return make_result(n_steps, "ok", f"completed {n_steps} steps")
+
+
+def _print_progress(n, n_steps, t):
+    width = 30
+    if n == n_steps or n % max(1, n_steps // 50) == 0:
+        done = int(width * n / n_steps)
+        end = "\n" if n == n_steps else "\r"
+        print(f"[{'#' * done}{'.' * (width - done)}] step {n}/{n_steps} t={t:.4g}", end=end,
+              flush=True)
+
+
+def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float = 0.8,
+             tol: float = 1e-10, max_iter: int = 12, stabilization: float = 0.5,
+             stabilization_damping: float = 1.0, constraint_form: str = "paper",
+             progress: bool | Callable = False, observer: Callable | None = None):
+    """Simulate ``model`` from 0 to ``t_end`` with the generalized-alpha method.
+
+    Parameters
+    ----------
+    model : Model or System
+        The mechanism (compiled here if needed).
+    t_end, dt : float
+        End time and time step [s]; ``t_end/dt`` is rounded up to whole steps.
+    rho_inf : float
+        Spectral radius at infinite frequency, in [0, 1] (1: no numerical dissipation).
+    tol : float
+        Newton stops when the position correction is below ``tol`` times the model size.
+    max_iter : int
+        Newton iteration limit per step.
+    stabilization : float
+        ``omega h`` of the Baumgarte term (0 switches it off).
+    stabilization_damping : float
+        Damping ratio ``xi`` of the Baumgarte term.
+    constraint_form : {"paper", "endpoint"}
+        Weighting of the acceleration constraint rows (module docstring).
+    progress : bool or callable
+        Print a progress bar, or call ``progress(step, n_steps, t)``.
+    observer : callable, optional
+        ``observer(StepInfo)`` after every converged step.
+
+    Returns
+    -------
+    Result
+        Stacked histories and statistics.
+
+    Raises
+    ------
+    ConvergenceError, NonFiniteError, SingularMatrixError
+        With ``error.result`` holding the steps completed before the failure.
+    """
+    system = model if isinstance(model, System) else compile_model(model)
+    settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
+                        stabilization=stabilization, stabilization_damping=stabilization_damping,
+                        constraint_form=constraint_form)
+    return integrate(system, settings, observer=observer, progress=progress)
+
+
+def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
+           max_iter: int = 30, q_start=None):
+    """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on
+    ``(q, lam)``: ``K q + J^T lam - Q_g - Q_ext = 0``, ``Phi(q, t) = 0``.
+
+    Parameters
+    ----------
+    model : Model or System
+    t : float
+        Time at which loads and driving constraints are evaluated [s].
+    steps : int
+        Continuation steps: equilibria are solved at ``t_k = k t / steps`` in turn, each
+        starting from the previous one (load control along the model's own profiles).
+    tol : float
+        Newton stops when the position correction is below ``tol`` times the model size.
+    max_iter : int
+        Newton iteration limit per continuation step.
+    q_start : (n_dof,), optional
+        Starting configuration (default: the initial configuration).
+
+    Returns
+    -------
+    Result
+        The equilibrium path (``n_t = steps + 1``), velocities and accelerations zero.
+
+    Notes
+    -----
+    Uses the residual and matrix kernels of the dynamic solver with the inertia weight 0, the
+    constraint rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing
+    for the Newton correction of ``q`` (``beta h² = 1``).
+    """
+    from .errors import SolverError
+    from .results import Result
+
+    system = model if isinstance(model, System) else compile_model(model)
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
+    if not np.isfinite(t):
+        raise ModelError(f"t must be finite, got {t!r}")
+    settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
+                        max_iter=max_iter, stabilization=0.0)
+    stp = Stepper(system, settings, scale=1.0)
+    stp.b0, stp.b1 = 1.0, 0.0
+    coef = StepCoefficients(1.0, 1.0, 0.0, (0.0, 1.0, 1.0, 0.0, 1.0), None)
+    n_dof = system.n_dof
+    L = system.length_scale
+    dt = system.dtype
+    zero_v = np.zeros(n_dof, dtype=dt)
+    R0 = np.zeros(system.n, dtype=dt)
+    q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
+    lam = np.zeros(system.n_con, dtype=dt)
+    # scale the constraint rows like the stiffness diagonal
+    stp._fill(np.zeros(system.n, dtype=dt), q, zero_v, 0.0, coef, scale=1.0)
+    d = np.abs(np.real(stp.matrix().diagonal()[:n_dof]))
+    stp.scale = float(np.median(d[d > 0])) if np.any(d > 0) else 1.0
+    times = np.linspace(0.0, float(t), steps + 1) if steps > 1 else np.array([0.0, float(t)])
+    Q = np.zeros((len(times), n_dof), dtype=dt)
+    LAM = np.zeros((len(times), system.n_con), dtype=dt)
+    iters = np.zeros(len(times), dtype=np.int64)
+    Q[0] = q
+    t_wall = _time.perf_counter()
+
+    def result(k, status, message):
+        sl = slice(0, k + 1)
+        viol = np.array([np.max(np.abs(system.constraint_violation(Q[i], zero_v, times[i])[0]),
+                                initial=0.0) for i in range(k + 1)])
+        return Result(system=system, settings=settings, t=times[sl].copy(), q=Q[sl].copy(),
+                      v=np.zeros_like(Q[sl]), a=np.zeros_like(Q[sl]), lam=LAM[sl].copy(),
+                      newton_iterations=iters[sl].copy(), constraint_violation=viol,
+                      velocity_violation=np.zeros(k + 1), status=status, message=message,
+                      n_factorizations=stp.n_factorizations,
+                      wall_time=_time.perf_counter() - t_wall, scale=stp.scale)
+
+    for k in range(1, len(times)):
+        tk = float(times[k])
+        c, cd, cdd, F, T = stp.time_arrays(tk)
+        ta = (c, cd * 0, cdd * 0, F, T)
+        err = np.inf
+        it = 0
+        for it in range(1, max_iter + 1):  # noqa: B007 - it is recorded after the loop
+            z = np.concatenate([np.zeros(n_dof, dtype=dt), lam / stp.scale])
+            R = stp.residual(z, q, zero_v, tk, coef, R0, time_arrays=ta)
+            if not np.all(np.isfinite(R)):
+                e = NonFiniteError(f"static solve: non-finite residual at t={tk:.6g}", time=tk,
+                                   step=k, residual=float("nan"))
+                e.result = result(k - 1, "failed", str(e))
+                raise e
+            try:
+                lu = stp.factor(z, q, zero_v, tk, coef)
+            except SolverError as e:
+                e.step = k
+                e.result = result(k - 1, "failed", str(e))
+                raise
+            dz = lu.solve(-R)
+            q = q + dz[:n_dof]
+            lam = (z[n_dof:] + dz[n_dof:]) * stp.scale
+            err = float(np.max(np.abs(dz[:n_dof]))) / L
+            if err <= tol:
+                break
+        else:
+            e = ConvergenceError(
+                f"static solve did not converge at t={tk:.6g} (continuation step {k}) in "
+                f"{max_iter} iterations: position correction {err:.3g} of the model size; "
+                f"dominant equations: {', '.join(stp.dominant(R))}; try more steps",
+                time=tk, step=k, residual=float(np.linalg.norm(R)), dominant=stp.dominant(R))
+            e.result = result(k - 1, "failed", str(e))
+            raise e
+        Q[k], LAM[k], iters[k] = q, lam, it
+    return result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")

@@ -1,0 +1,35 @@
+"""Small models shared by the tests (each builds in milliseconds)."""
+
+import numpy as np
+
+import morphlab as ml
+
+# aluminium-like strip in mm, t, s, N, MPa
+E_AL = 70000.0
+RHO_AL = 2.7e-9
+
+
+def straight_nodes(n_elem, length=100.0, angle=0.0, origin=(0.0, 0.0)):
+    s = np.linspace(0.0, length, n_elem + 1)
+    return np.stack([origin[0] + s * np.cos(angle), origin[1] + s * np.sin(angle)], axis=1)
+
+
+def flexible_mechanism(gravity=(0.0, -9.81e3), n_elem=6):
+    """A closed loop: rigid crank on ground, flexible coupler beam, rigid rocker; plus a weld,
+    a point force and a torque, so every kernel contributes."""
+    m = ml.Model(gravity=gravity, name="four-bar")
+    crank = m.add_rigid_body(mass=2e-4, inertia=0.2, position=(0.0, 10.0), angle=np.pi / 2,
+                             name="crank")
+    nodes = straight_nodes(n_elem, length=60.0, origin=(0.0, 20.0), angle=0.1)
+    coupler = m.add_beam(nodes, E=E_AL, rho=RHO_AL, thickness=2.0, width=10.0,
+                         damping=1e-4, name="coupler")
+    end = nodes[-1]
+    rocker = m.add_rigid_body(mass=3e-4, inertia=0.3, position=(end[0], end[1] / 2),
+                              angle=np.pi / 2, name="rocker")
+    m.add_revolute(m.ground, crank, at=(0.0, 0.0), name="A")
+    m.add_revolute(crank, coupler, at=(0.0, 20.0), name="B")
+    m.add_revolute(coupler, rocker, at=tuple(end), name="C")
+    m.add_revolute(rocker, m.ground, at=(end[0], 0.0), name="D")
+    m.add_torque(crank, 50.0, profile=ml.SmoothStep(0.0, 0.05), name="Mt")
+    m.add_force(coupler, at=tuple(nodes[3]), force=(0.0, -2.0), name="F")
+    return m
