@@ -5,6 +5,7 @@ Reproduces Gufler, Wehrle, Achleitner, Vidoni: "Flexible multibody dynamics and 
 analysis in the design of a morphing leading edge for high-performance sailplanes".
 """
 
+from . import responses
 from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
@@ -18,6 +19,7 @@ from .errors import (
 from .model import Beam, Model, RigidBody
 from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
 from .results import Result
+from .sensitivity import SensitivityResult, sensitivities
 from .solver import GeneralizedAlpha, Settings, State, simulate, static
 
 __version__ = "0.1.0"
@@ -25,6 +27,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "GeneralizedAlpha", "Linear", "Model",
     "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
-    "SensitivityError", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
-    "State", "System", "compile_model", "simulate", "static", "__version__",
+    "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
+    "SmoothStep", "SolverError", "State", "System", "compile_model", "responses",
+    "sensitivities", "simulate", "static", "__version__",
 ]

@@ -192,6 +192,7 @@ class Stepper:
         self.data = np.zeros(system.nnz, dtype=self.dtype)
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
+        self.polish = 0  # extra Newton updates after convergence (complex-step reference runs)
 
     # ---- building blocks
     def _choose_scale(self) -> float:
@@ -213,14 +214,18 @@ class Stepper:
         vh = st.v + (1.0 - g.gamma) * h * st.a
         return qh, vh
 
-    def history(self, st: State, coef: StepCoefficients, system_S=None, dtype=None):
-        """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step)."""
+    def history(self, st: State, coef: StepCoefficients, system=None, system_S=None,
+                dtype=None):
+        """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step).
+
+        ``system``/``system_S``: evaluate with another compiled system of the same layout (a
+        perturbed design, for the sensitivity pseudo-loads)."""
         S = self.S if system_S is None else system_S
         dt = self.dtype if dtype is None else dtype
         R = np.zeros(self.n, dtype=dt)
         if coef.old is None:
             return R
-        c, cd, cdd, F, T = self.time_arrays(st.t, dt)
+        c, cd, cdd, F, T = self.time_arrays(st.t, dt, system)
         wm, wl, wf, wcm, wcf = coef.old
         add_residual(S, st.q.astype(dt), st.v.astype(dt), st.a.astype(dt), st.lam.astype(dt),
                      wm, wl, wf, wcm, wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T,
@@ -312,6 +317,12 @@ class Stepper:
                 err = coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
             hist.append((float(np.linalg.norm(R)), err))
             if err <= s.tol:
+                # A complex-step run's imaginary part (the derivative) converges one Newton
+                # iteration behind the real part: polish removes that lag.
+                for _ in range(self.polish):
+                    R = self.residual(z, qh, vh, t1, coef, R_hist)
+                    lu = self.factor(z, qh, vh, t1, coef)
+                    z = z + lu.solve(-R)
                 return z, lu, it, hist
         R = self.residual(z, qh, vh, t1, coef, R_hist)
         raise ConvergenceError(
@@ -360,7 +371,8 @@ class StepInfo:
 
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
-              progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None):
+              progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
+              polish: int = 0):
     """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
 
     ``observer(info: StepInfo)`` is called after the initial solve and after every converged
@@ -371,6 +383,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
 
     settings.validate()
     stepper = Stepper(system, settings, scale=scale)
+    stepper.polish = polish
     n_steps = settings.n_steps
     h = settings.h
     n_dof, n_con = system.n_dof, system.n_con
