@@ -192,6 +192,8 @@ class Stepper:
         self.data = np.zeros(system.nnz, dtype=self.dtype)
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
+        self._perm = None
+        self._Ap = None
         self.polish = 0  # extra Newton updates after convergence (complex-step reference runs)
 
     # ---- building blocks
@@ -215,17 +217,18 @@ class Stepper:
         return qh, vh
 
     def history(self, st: State, coef: StepCoefficients, system=None, system_S=None,
-                dtype=None):
+                dtype=None, ta=None):
         """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step).
 
         ``system``/``system_S``: evaluate with another compiled system of the same layout (a
-        perturbed design, for the sensitivity pseudo-loads)."""
+        perturbed design, for the sensitivity pseudo-loads); ``ta``: its time arrays at
+        ``st.t`` when already known."""
         S = self.S if system_S is None else system_S
         dt = self.dtype if dtype is None else dtype
         R = np.zeros(self.n, dtype=dt)
         if coef.old is None:
             return R
-        c, cd, cdd, F, T = self.time_arrays(st.t, dt, system)
+        c, cd, cdd, F, T = ta if ta is not None else self.time_arrays(st.t, dt, system)
         wm, wl, wf, wcm, wcf = coef.old
         add_residual(S, st.q.astype(dt), st.v.astype(dt), st.a.astype(dt), st.lam.astype(dt),
                      wm, wl, wf, wcm, wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T,
@@ -253,13 +256,14 @@ class Stepper:
                      wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T, self.n_dof, R)
         return R
 
-    def _fill(self, z, qh, vh, t1, coef, scale=None):
+    def _fill(self, z, qh, vh, t1, coef, scale=None, F=None):
         a = z[: self.n_dof]
         sc = self.scale if scale is None else scale
         lam = z[self.n_dof:] * sc
         q = qh + coef.bh2 * a
         v = vh + coef.gh * a
-        F = np.ascontiguousarray(self.system.time_arrays(t1)[3], dtype=self.dtype)
+        if F is None:
+            F = np.ascontiguousarray(self.system.time_arrays(t1)[3], dtype=self.dtype)
         wm, wl, wf, wcm, wcf = coef.new
         fill_matrix(self.S, q, v, a, lam, wm, wl, wf, wcm, wcf, coef.bh2, coef.gh, sc, self.b0,
                     self.b1, F, self.data)
@@ -269,11 +273,35 @@ class Stepper:
         return sp.csc_matrix((self.data, self.system.indices, self.system.indptr),
                              shape=(self.n, self.n))
 
-    def factor(self, z, qh, vh, t1, coef):
-        """Fill and factor the exact Newton matrix at ``z``."""
-        self._fill(z, qh, vh, t1, coef)
-        try:
+    def _lu(self):
+        """Factor the filled matrix. The fill-reducing column order (COLAMD) is computed at the
+        first factorization and reused: the pattern is fixed, so later matrices are permuted
+        by a precomputed gather of ``data`` and factored with ``permc_spec="NATURAL"``
+        (SuperLU would otherwise recompute the ordering every time)."""
+        if self._perm is None:
             lu = splu(self.matrix(), permc_spec="COLAMD")
+            perm_c = lu.perm_c
+            s = self.system
+            starts, ends = s.indptr[:-1], s.indptr[1:]
+            order = np.argsort(perm_c)  # new column j holds old column order[j]
+            counts = (ends - starts)[order]
+            gather = np.concatenate([np.arange(starts[j], ends[j]) for j in order]) \
+                if s.nnz else np.zeros(0, dtype=np.int64)
+            indptr_p = np.concatenate([[0], np.cumsum(counts)]).astype(s.indptr.dtype)
+            indices_p = s.indices[gather]
+            self._perm = (order, gather)
+            self._Ap = sp.csc_matrix((self.data[gather], indices_p, indptr_p),
+                                     shape=(self.n, self.n))
+            return _PermutedLU(lu, None)
+        order, gather = self._perm
+        np.take(self.data, gather, out=self._Ap.data)
+        return _PermutedLU(splu(self._Ap, permc_spec="NATURAL"), order)
+
+    def factor(self, z, qh, vh, t1, coef, F=None):
+        """Fill and factor the exact Newton matrix at ``z``."""
+        self._fill(z, qh, vh, t1, coef, F=F)
+        try:
+            lu = self._lu()
         except RuntimeError as exc:
             raise SingularMatrixError(
                 f"singular saddle-point matrix at t={t1:.6g}: {exc}. Look for redundant joints, "
@@ -290,21 +318,24 @@ class Stepper:
         idx = np.argsort(-np.abs(R))[:k]
         return [f"{names[i]} ({abs(R[i]):.3g})" for i in idx]
 
-    def newton(self, z, qh, vh, t1, coef, R_hist, step):
+    def newton(self, z, qh, vh, t1, coef, R_hist, step, ta=None):
         """Newton–Raphson from ``z``. Returns ``(z, lu, n_iter, history)``; ``lu`` is the last
         factorization (taken at the iterate before the final correction)."""
         s = self.settings
         L = self.system.length_scale
         hist = []
         lu = None
+        if ta is None:
+            ta = self.time_arrays(t1)
+        F = ta[3]
         for it in range(1, s.max_iter + 1):
-            R = self.residual(z, qh, vh, t1, coef, R_hist)
+            R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
             if not np.all(np.isfinite(R)):
                 raise NonFiniteError(
                     f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}); "
                     f"largest entries: {', '.join(self.dominant(np.nan_to_num(R)))}",
                     time=t1, step=step, residual=float("nan"))
-            lu = self.factor(z, qh, vh, t1, coef)
+            lu = self.factor(z, qh, vh, t1, coef, F=F)
             dz = lu.solve(-R)
             if not np.all(np.isfinite(dz)):
                 raise NonFiniteError(f"non-finite Newton correction at t={t1:.6g} (step {step})",
@@ -320,11 +351,11 @@ class Stepper:
                 # A complex-step run's imaginary part (the derivative) converges one Newton
                 # iteration behind the real part: polish removes that lag.
                 for _ in range(self.polish):
-                    R = self.residual(z, qh, vh, t1, coef, R_hist)
-                    lu = self.factor(z, qh, vh, t1, coef)
+                    R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
+                    lu = self.factor(z, qh, vh, t1, coef, F=F)
                     z = z + lu.solve(-R)
                 return z, lu, it, hist
-        R = self.residual(z, qh, vh, t1, coef, R_hist)
+        R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
         raise ConvergenceError(
             f"Newton did not converge at t={t1:.6g} (step {step}) in {s.max_iter} iterations: "
             f"position correction {err:.3g} of the model size (tol {s.tol:.1g}), residual norm "
@@ -332,25 +363,57 @@ class Stepper:
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
     # ---- the two kinds of solve
-    def initial(self, t0, q0, v0):
+    def initial(self, t0, q0, v0, ta=None):
         """Consistent initial accelerations and multipliers: one saddle-point solve at ``t0``."""
         n0 = np.zeros(self.n, dtype=self.dtype)
         R_hist = np.zeros(self.n, dtype=self.dtype)
-        z, lu, it, hist = self.newton(n0, q0, v0, t0, self.init_coef, R_hist, 0)
+        z, lu, it, hist = self.newton(n0, q0, v0, t0, self.init_coef, R_hist, 0, ta=ta)
         a = z[: self.n_dof]
         return State(t0, q0.copy(), v0.copy(), a, z[self.n_dof:] * self.scale), lu, z
 
-    def step(self, st: State, t1: float, step: int):
-        """Advance one step from ``st`` to ``t1``. Returns ``(state, lu, n_iter, z, qh, vh,
-        R_hist)``."""
+    def step(self, st: State, t1: float, step: int, ta_old=None, ta_new=None):
+        """Advance one step from ``st`` to ``t1`` (``ta_old``, ``ta_new``: time arrays at both
+        ends, when precomputed). Returns ``(state, lu, n_iter, z, qh, vh, R_hist, history)``."""
         coef = self.step_coef
         qh, vh = self.predict(st, coef.h)
-        R_hist = self.history(st, coef)
+        R_hist = self.history(st, coef, ta=ta_old)
         z0 = np.concatenate([st.a, st.lam / self.scale])
-        z, lu, it, hist = self.newton(z0, qh, vh, t1, coef, R_hist, step)
+        z, lu, it, hist = self.newton(z0, qh, vh, t1, coef, R_hist, step, ta=ta_new)
         a = z[: self.n_dof]
         new = State(t1, qh + coef.bh2 * a, vh + coef.gh * a, a, z[self.n_dof:] * self.scale)
         return new, lu, it, z, qh, vh, R_hist, hist
+
+
+class _PermutedLU:
+    """An LU of ``A P`` (columns permuted by ``order``) that solves ``A x = b``."""
+
+    __slots__ = ("lu", "order")
+
+    def __init__(self, lu, order):
+        self.lu = lu
+        self.order = order
+
+    def solve(self, b):
+        y = self.lu.solve(b)
+        if self.order is None:
+            return y
+        x = np.empty_like(y)
+        x[self.order] = y
+        return x
+
+
+def time_table(system: System, times: np.ndarray, dtype=None) -> tuple:
+    """Time-dependent data at every time of ``times``: ``(C, CD, CDD, F, T)`` with a leading
+    axis ``len(times)`` (profiles evaluated once per run, not inside the Newton loop)."""
+    dt = system.dtype if dtype is None else np.dtype(dtype)
+    rows = [system.time_arrays(float(t)) for t in times]
+    return tuple(np.ascontiguousarray(np.stack([r[k] for r in rows]), dtype=dt)
+                 for k in range(5))
+
+
+def table_at(table: tuple, k: int) -> tuple:
+    """The time arrays of entry ``k`` of a :func:`time_table`."""
+    return tuple(x[k] for x in table)
 
 
 @dataclass
@@ -368,6 +431,7 @@ class StepInfo:
     coef: StepCoefficients
     stepper: Stepper
     newton_history: list = field(default_factory=list)
+    table: tuple | None = None
 
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
@@ -421,25 +485,30 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
 
     q_init = system.q0 if q0 is None else q0
     v_init = system.v0 if v0 is None else v0
+    table = time_table(system, t)
     try:
-        st, lu, z = stepper.initial(t[0], q_init.astype(dt), v_init.astype(dt))
+        st, lu, z = stepper.initial(t[0], q_init.astype(dt), v_init.astype(dt),
+                                    ta=table_at(table, 0))
     except SolverError as err:
         err.result = make_result(-1, "failed", str(err))
         raise
     record(0, st, 1)
     if observer is not None:
-        observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper))
+        observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper,
+                          table=table))
     report = progress if callable(progress) else (_print_progress if progress else None)
     for n in range(1, n_steps + 1):
         try:
-            new, lu, it, z, qh, vh, R_hist, hist = stepper.step(st, float(t[n]), n)
+            new, lu, it, z, qh, vh, R_hist, hist = stepper.step(
+                st, float(t[n]), n, table_at(table, n - 1), table_at(table, n))
         except SolverError as err:
             err.result = make_result(n - 1, "failed", str(err))
             raise
         histories.append(hist)
         record(n, new, it)
         if observer is not None:
-            observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper, hist))
+            observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper, hist,
+                              table=table))
         st = new
         if report is not None:
             report(n, n_steps, float(t[n]))
