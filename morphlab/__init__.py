@@ -21,6 +21,7 @@ from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
 from .results import Result
 from .sensitivity import SensitivityResult, sensitivities
 from .solver import GeneralizedAlpha, Settings, State, simulate, static
+from .warmup import warmup
 
 __version__ = "0.1.0"
 
@@ -29,5 +30,5 @@ __all__ = [
     "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
     "SmoothStep", "SolverError", "State", "System", "compile_model", "responses",
-    "sensitivities", "simulate", "static", "__version__",
+    "sensitivities", "simulate", "static", "warmup", "__version__",
 ]
