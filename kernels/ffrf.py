@@ -37,45 +37,68 @@ from numba import njit
 def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex):
     """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
 
-    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv`` (each (n_flex,)).
+    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv`` (each (n_flex + 1,)). Element DOFs
+    removed by a reference condition (``elem_fdof == -1``) read and write the extra slot
+    ``n_flex``, which holds zero coordinates, so the element loop has no branches.
     """
     dt = q.dtype
-    qf = np.zeros(n_flex, dtype=dt)
-    vf = np.zeros(n_flex, dtype=dt)
-    af = np.zeros(n_flex, dtype=dt)
+    m = n_flex + 1
+    qf = np.zeros(m, dtype=dt)
+    vf = np.zeros(m, dtype=dt)
+    af = np.zeros(m, dtype=dt)
     for k in range(n_flex):
         qf[k] = q[flex_dof[k]]
         vf[k] = v[flex_dof[k]]
         af[k] = a[flex_dof[k]]
-    Mq = np.zeros(n_flex, dtype=dt)
-    Mv = np.zeros(n_flex, dtype=dt)
-    Ma = np.zeros(n_flex, dtype=dt)
-    Sq = np.zeros(n_flex, dtype=dt)
-    Sv = np.zeros(n_flex, dtype=dt)
-    Sa = np.zeros(n_flex, dtype=dt)
-    Kq = np.zeros(n_flex, dtype=dt)
-    Kv = np.zeros(n_flex, dtype=dt)
+    Mq = np.zeros(m, dtype=dt)
+    Mv = np.zeros(m, dtype=dt)
+    Ma = np.zeros(m, dtype=dt)
+    Sq = np.zeros(m, dtype=dt)
+    Sv = np.zeros(m, dtype=dt)
+    Sa = np.zeros(m, dtype=dt)
+    Kq = np.zeros(m, dtype=dt)
+    Kv = np.zeros(m, dtype=dt)
+    idx = np.empty(6, dtype=np.int64)
+    ql = np.empty(6, dtype=dt)
+    vl = np.empty(6, dtype=dt)
+    al = np.empty(6, dtype=dt)
     for e in range(elem_fdof.shape[0]):
-        fd = elem_fdof[e]
         for i in range(6):
-            fi = fd[i]
-            if fi < 0:
-                continue
+            f = elem_fdof[e, i]
+            idx[i] = f if f >= 0 else n_flex
+            ql[i] = qf[idx[i]]
+            vl[i] = vf[idx[i]]
+            al[i] = af[idx[i]]
+        Me = elem_M[e]
+        Se = elem_St[e]
+        Ke = elem_K[e]
+        for i in range(6):
+            mq = 0.0 * ql[0]
+            mv = 0.0 * ql[0]
+            ma = 0.0 * ql[0]
+            sq = 0.0 * ql[0]
+            sv = 0.0 * ql[0]
+            sa = 0.0 * ql[0]
+            kq = 0.0 * ql[0]
+            kv = 0.0 * ql[0]
             for j in range(6):
-                fj = fd[j]
-                if fj < 0:
-                    continue
-                m = elem_M[e, i, j]
-                st = elem_St[e, i, j]
-                kk = elem_K[e, i, j]
-                Mq[fi] += m * qf[fj]
-                Mv[fi] += m * vf[fj]
-                Ma[fi] += m * af[fj]
-                Sq[fi] += st * qf[fj]
-                Sv[fi] += st * vf[fj]
-                Sa[fi] += st * af[fj]
-                Kq[fi] += kk * qf[fj]
-                Kv[fi] += kk * vf[fj]
+                mq += Me[i, j] * ql[j]
+                mv += Me[i, j] * vl[j]
+                ma += Me[i, j] * al[j]
+                sq += Se[i, j] * ql[j]
+                sv += Se[i, j] * vl[j]
+                sa += Se[i, j] * al[j]
+                kq += Ke[i, j] * ql[j]
+                kv += Ke[i, j] * vl[j]
+            k = idx[i]
+            Mq[k] += mq
+            Mv[k] += mv
+            Ma[k] += ma
+            Sq[k] += sq
+            Sv[k] += sv
+            Sa[k] += sa
+            Kq[k] += kq
+            Kv[k] += kv
     return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv
 
 
