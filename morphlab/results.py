@@ -51,6 +51,7 @@ class Result:
     wall_time: float = 0.0
     newton_history: list = field(default_factory=list, repr=False)
     scale: float = 1.0
+    step_reductions: list = field(default_factory=list)
 
     # ---- coordinates by name
     @property

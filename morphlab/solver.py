@@ -363,6 +363,42 @@ class Stepper:
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
     # ---- the two kinds of solve
+    def substep_coefficients(self, h: float) -> StepCoefficients:
+        """Coefficients of a step of length ``h`` (same method and weights)."""
+        c = self.step_coef
+        return StepCoefficients(h, c.beta, c.gamma, c.new, c.old)
+
+    def advance(self, st: State, t1: float, step: int, ta_old, ta_new, max_halvings: int,
+                reductions: list):
+        """:meth:`step`, retried on ``[st.t, t1]`` with 2, 4, ... equal sub-steps (up to
+        ``2**max_halvings``) when Newton fails; each success with sub-steps is recorded in
+        ``reductions`` as ``(t1, n_substeps)``. Returns the same tuple as :meth:`step`."""
+        try:
+            return self.step(st, t1, step, ta_old, ta_new)
+        except (ConvergenceError, NonFiniteError):
+            if max_halvings <= 0:
+                raise
+        t0 = st.t
+        for level in range(1, max_halvings + 1):
+            m = 2**level
+            h = (t1 - t0) / m
+            coef = self.substep_coefficients(h)
+            cur = st
+            try:
+                for k in range(1, m + 1):
+                    tk = t1 if k == m else t0 + k * h
+                    ta_k = ta_new if k == m else self.time_arrays(tk)
+                    ta_p = ta_old if k == 1 else self.time_arrays(cur.t)
+                    out = self.step(cur, tk, step, ta_p, ta_k, coef=coef)
+                    cur = out[0]
+            except (ConvergenceError, NonFiniteError):
+                if level == max_halvings:
+                    raise
+                continue
+            reductions.append((float(t1), m))
+            return out
+        raise AssertionError("unreachable")  # pragma: no cover
+
     def initial(self, t0, q0, v0, ta=None):
         """Consistent initial accelerations and multipliers: one saddle-point solve at ``t0``."""
         n0 = np.zeros(self.n, dtype=self.dtype)
@@ -371,10 +407,11 @@ class Stepper:
         a = z[: self.n_dof]
         return State(t0, q0.copy(), v0.copy(), a, z[self.n_dof:] * self.scale), lu, z
 
-    def step(self, st: State, t1: float, step: int, ta_old=None, ta_new=None):
+    def step(self, st: State, t1: float, step: int, ta_old=None, ta_new=None, coef=None):
         """Advance one step from ``st`` to ``t1`` (``ta_old``, ``ta_new``: time arrays at both
-        ends, when precomputed). Returns ``(state, lu, n_iter, z, qh, vh, R_hist, history)``."""
-        coef = self.step_coef
+        ends, when precomputed; ``coef``: coefficients of a shorter sub-step). Returns
+        ``(state, lu, n_iter, z, qh, vh, R_hist, history)``."""
+        coef = self.step_coef if coef is None else coef
         qh, vh = self.predict(st, coef.h)
         R_hist = self.history(st, coef, ta=ta_old)
         z0 = np.concatenate([st.a, st.lam / self.scale])
@@ -436,13 +473,21 @@ class StepInfo:
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
               progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
-              polish: int = 0):
+              polish: int = 0, max_halvings: int = 0):
     """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
 
     ``observer(info: StepInfo)`` is called after the initial solve and after every converged
     step; the sensitivity strategies use it. On failure the raised :class:`SolverError` carries
-    the results up to the last converged step as ``error.result``.
+    the results up to the last converged step as ``error.result``. ``max_halvings > 0`` retries
+    a failed step with up to ``2**max_halvings`` sub-steps (not with an observer: sensitivity
+    runs need the same step sequence for every design); the results stay on the regular grid
+    and ``result.step_reductions`` lists ``(t, n_substeps)`` of each retried step.
     """
+    if max_halvings and observer is not None:
+        raise ModelError("automatic step reduction cannot be combined with an observer "
+                         "(sensitivity runs need one fixed step sequence)")
+    if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
+        raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
     from .results import Result
 
     settings.validate()
@@ -461,6 +506,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     viol = np.zeros(n_steps + 1)
     vviol = np.zeros(n_steps + 1)
     histories: list = []
+    reductions: list = []
     t_wall = _time.perf_counter()
 
     def make_result(n_done, status, message):
@@ -471,7 +517,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                       velocity_violation=vviol[sl].copy(), status=status, message=message,
                       n_factorizations=stepper.n_factorizations,
                       wall_time=_time.perf_counter() - t_wall, newton_history=histories,
-                      scale=stepper.scale)
+                      scale=stepper.scale, step_reductions=list(reductions))
 
     def record(n, st, it):
         Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
@@ -499,8 +545,9 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     report = progress if callable(progress) else (_print_progress if progress else None)
     for n in range(1, n_steps + 1):
         try:
-            new, lu, it, z, qh, vh, R_hist, hist = stepper.step(
-                st, float(t[n]), n, table_at(table, n - 1), table_at(table, n))
+            new, lu, it, z, qh, vh, R_hist, hist = stepper.advance(
+                st, float(t[n]), n, table_at(table, n - 1), table_at(table, n), max_halvings,
+                reductions)
         except SolverError as err:
             err.result = make_result(n - 1, "failed", str(err))
             raise
@@ -527,7 +574,8 @@ def _print_progress(n, n_steps, t):
 def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float = 0.8,
              tol: float = 1e-10, max_iter: int = 12, stabilization: float = 0.5,
              stabilization_damping: float = 1.0, constraint_form: str = "paper",
-             progress: bool | Callable = False, observer: Callable | None = None):
+             progress: bool | Callable = False, observer: Callable | None = None,
+             max_halvings: int = 0):
     """Simulate ``model`` from 0 to ``t_end`` with the generalized-alpha method.
 
     Parameters
@@ -552,6 +600,10 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
         Print a progress bar, or call ``progress(step, n_steps, t)``.
     observer : callable, optional
         ``observer(StepInfo)`` after every converged step.
+    max_halvings : int
+        Automatic step reduction: a step whose Newton iteration fails is retried with 2, 4,
+        ... sub-steps, up to ``2**max_halvings`` (0: off, the default). Retried steps are
+        listed in ``result.step_reductions``.
 
     Returns
     -------
@@ -567,7 +619,8 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
     settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
                         stabilization=stabilization, stabilization_damping=stabilization_damping,
                         constraint_form=constraint_form)
-    return integrate(system, settings, observer=observer, progress=progress)
+    return integrate(system, settings, observer=observer, progress=progress,
+                     max_halvings=max_halvings)
 
 
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
