@@ -16,6 +16,12 @@ class SensitivityError(MorphlabError, ValueError):
     used by ``build``, response not complex-safe, topology changing with a design variable)."""
 
 
+class FormatError(MorphlabError, ValueError):
+    """A file cannot be written or read in the morphlab file format (not a morphlab file, a
+    newer format version, an entry that has no file representation, metadata that is not
+    JSON)."""
+
+
 class SolverError(MorphlabError, RuntimeError):
     """A run failed. ``result`` holds the solution up to the last converged step.
 

@@ -4,12 +4,18 @@ A :class:`Model` only *describes* a mechanism; :func:`morphlab.compile.compile_m
 flat arrays. Points are given in global coordinates of the initial (undeformed) configuration;
 on a beam, joints and loads sit at nodes. Values may be complex (complex-step differentiation
 through a parametric ``build(p)``); validation looks at the real parts.
+
+Every ``add_*`` call validates its arguments before it changes the model, and refuses bad input
+with a :class:`~morphlab.errors.ModelError` that names the body, joint, load or parameter and
+says what would be valid: numbers must be finite numbers of the right shape (no strings,
+``None``, booleans, NaN or Inf), physical parameters positive, names unique non-empty strings,
+points on a beam at one of its nodes. What needs the whole model (redundant or conflicting
+constraints, an inconsistent initial configuration) is checked by ``compile_model``.
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,18 +30,81 @@ def _real(x):
     return np.real(np.asarray(x))
 
 
-def _finite_positive(value, what, owner):
-    v = _real(value)
-    if v.shape != () or not np.isfinite(v) or not v > 0:
-        raise ModelError(f"{owner}: {what} must be a finite positive number, got {value!r}")
+def _show(value, limit=60) -> str:
+    """Short ``repr`` of a user value for error messages."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _upcast(value):
+    """NumPy values of less than double precision as float64/complex128 (the same numbers):
+    joint geometry and the compiled system are computed in double precision, and a float32
+    angle would put its round-off (~1e-7) into the initial constraint violation."""
+    if isinstance(value, (np.ndarray, np.generic)):
+        kind, size = value.dtype.kind, value.dtype.itemsize
+        if kind == "f" and size < 8:
+            return value.astype(np.float64)
+        if kind == "c" and size < 16:
+            return value.astype(np.complex128)
     return value
 
 
+def _has_bool(value) -> bool:
+    """True for a bool, or a list/tuple holding one (NumPy would silently turn it into 0/1)."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    return isinstance(value, (list, tuple)) and any(_has_bool(v) for v in value)
+
+
+def _numeric(value, what, owner, shape=(), expect="a finite number"):
+    """``value`` as a numeric (integer, real or complex) array of ``shape``, all entries finite.
+
+    Rejects what NumPy would otherwise let through or fail on later with an unrelated message:
+    strings, ``None``, booleans, objects, ragged sequences, wrong shapes, NaN and Inf (real or
+    imaginary part). Complex values are allowed (complex-step differentiation).
+    """
+    try:
+        arr = None if _has_bool(value) else np.asarray(value)
+    except (TypeError, ValueError, OverflowError):  # ragged or unconvertible sequences
+        arr = None
+    if arr is None or arr.dtype.kind not in "iufc" or arr.shape != shape:
+        raise ModelError(f"{owner}: {what} must be {expect}, got {_show(value)}")
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"{owner}: {what} must be {expect} (no NaN or Inf), got {_show(value)}")
+    return _upcast(arr)
+
+
+def _finite_positive(value, what, owner):
+    v = _real(_numeric(value, what, owner, expect="a finite positive number"))
+    if not v > 0:
+        raise ModelError(f"{owner}: {what} must be a finite positive number, got {_show(value)}")
+    return _upcast(value)
+
+
 def _point(at, what, owner):
-    arr = np.asarray(at)
-    if arr.shape != (2,) or not np.all(np.isfinite(_real(arr))):
-        raise ModelError(f"{owner}: {what} must be a finite point (x, y), got {at!r}")
-    return arr
+    return _numeric(at, what, owner, shape=(2,), expect="a finite pair (x, y) of numbers")
+
+
+def _check_name(name, kind):
+    """A user-given name must be a non-empty string."""
+    if not isinstance(name, str) or not name:
+        raise ModelError(f"{kind} names must be non-empty strings, got {_show(name)}")
+    return name
+
+
+def _profile(obj, owner):
+    """``obj`` as a :class:`Profile` whose value at ``t = 0`` is a finite number."""
+    if isinstance(obj, (bool, np.bool_)):
+        raise ModelError(f"{owner}: profile must be a Profile, a number or a callable f(t), "
+                         f"got {obj!r}")
+    prof = as_profile(obj, owner)
+    try:
+        f0 = prof.value(0.0)
+    except Exception as exc:  # a user callable: report which one failed, keep the cause
+        raise ModelError(f"{owner}: evaluating the profile at t=0 failed: "
+                         f"{type(exc).__name__}: {exc}") from exc
+    _numeric(f0, "the profile value at t=0", owner)
+    return prof
 
 
 class Body:
@@ -75,15 +144,16 @@ class RigidBody(Body):
 
     def __init__(self, mass, inertia, position, angle=0.0, *, velocity=(0.0, 0.0),
                  angular_velocity=0.0, name):
-        self.name = name
-        self.mass = _finite_positive(mass, "mass", f"rigid body {name!r}")
-        self.inertia = _finite_positive(inertia, "inertia", f"rigid body {name!r}")
-        self.position = _point(position, "position", f"rigid body {name!r}")
-        if not np.isfinite(_real(angle)):
-            raise ModelError(f"rigid body {name!r}: angle must be finite, got {angle!r}")
-        self.angle = angle
-        self.velocity = _point(velocity, "velocity", f"rigid body {name!r}")
-        self.angular_velocity = angular_velocity
+        self.name = _check_name(name, "body")
+        owner = f"rigid body {name!r}"
+        self.mass = _finite_positive(mass, "mass", owner)
+        self.inertia = _finite_positive(inertia, "inertia", owner)
+        self.position = _point(position, "position", owner)
+        _numeric(angle, "angle [rad]", owner)
+        self.angle = _upcast(angle)
+        self.velocity = _point(velocity, "velocity", owner)
+        _numeric(angular_velocity, "angular_velocity [rad/s]", owner)
+        self.angular_velocity = _upcast(angular_velocity)
 
 
 class Beam(Body):
@@ -114,16 +184,21 @@ class Beam(Body):
 
     def __init__(self, nodes, *, E, rho, thickness=None, width=None, area=None,
                  second_moment=None, fibre=None, damping=0.0, reference_node=0, name):
-        self.name = name
+        self.name = _check_name(name, "body")
         owner = f"beam {name!r}"
-        X = np.asarray(nodes)
-        if X.ndim != 2 or X.shape[1] != 2:
-            raise ModelError(f"{owner}: nodes must be an (n, 2) array, got shape {X.shape}")
+        try:
+            X = np.asarray(None if _has_bool(nodes) else nodes)
+        except (TypeError, ValueError, OverflowError):  # ragged sequences
+            X = np.asarray(None)
+        if X.dtype.kind not in "iufc" or X.ndim != 2 or X.shape[1] != 2:
+            raise ModelError(f"{owner}: nodes must be an (n, 2) array of numbers (x, y per row), "
+                             f"got {_show(nodes)} (shape {X.shape}, dtype {X.dtype})")
         if X.shape[0] < 2:
             raise ModelError(f"{owner}: needs at least two nodes, got {X.shape[0]}")
-        if not np.all(np.isfinite(_real(X))):
-            bad = int(np.argwhere(~np.isfinite(_real(X)))[0, 0])
-            raise ModelError(f"{owner}: node {bad} has a non-finite coordinate {X[bad]!r}")
+        if not np.all(np.isfinite(X)):
+            bad = int(np.argwhere(~np.isfinite(X))[0, 0])
+            raise ModelError(f"{owner}: node {bad} has a non-finite coordinate {X[bad]!r}; "
+                             "node coordinates must be finite numbers")
         seg = np.hypot(*np.diff(_real(X), axis=0).T)
         scale = max(float(np.ptp(_real(X), axis=0).max()), 1e-300)
         short = np.flatnonzero(seg <= 1e-12 * scale)
@@ -133,7 +208,7 @@ class Beam(Body):
                 f"{owner}: nodes {e} and {e + 1} coincide (element {e} has length {seg[e]:.3g});"
                 " consecutive nodes must be distinct"
             )
-        self.nodes = X
+        self.nodes = _upcast(X)
         self.E = _finite_positive(E, "E", owner)
         self.rho = _finite_positive(rho, "rho", owner)
         if thickness is not None or width is not None:
@@ -141,26 +216,34 @@ class Beam(Body):
                 raise ModelError(f"{owner}: a rectangular section needs both thickness and width")
             if area is not None or second_moment is not None:
                 raise ModelError(f"{owner}: give thickness/width or area/second_moment, not both")
-            _finite_positive(thickness, "thickness", owner)
-            _finite_positive(width, "width", owner)
+            thickness = _finite_positive(thickness, "thickness", owner)
+            width = _finite_positive(width, "width", owner)
             area = width * thickness
-            second_moment = width * thickness**3 / 12.0
+            # a product, not thickness**3: Python floats raise OverflowError on a huge power
+            second_moment = width * thickness * thickness * thickness / 12.0
             fibre = thickness / 2.0 if fibre is None else fibre
+            derived = " (= width thickness^3 / 12 from the rectangular section)"
         elif area is None or second_moment is None:
             raise ModelError(
                 f"{owner}: section missing: give thickness and width, or area and second_moment"
             )
+        else:
+            derived = ""
         self.thickness = thickness
         self.width = width
         self.area = _finite_positive(area, "area", owner)
-        self.second_moment = _finite_positive(second_moment, "second_moment", owner)
-        self.fibre = _finite_positive(fibre, "fibre", owner) if fibre is not None else 0.0 * area
-        d = _real(damping)
-        if not np.isfinite(d) or d < 0:
-            raise ModelError(f"{owner}: damping must be finite and >= 0, got {damping!r}")
-        self.damping = damping
+        self.second_moment = _finite_positive(second_moment, f"second_moment{derived}",
+                                              owner)
+        self.fibre = (_finite_positive(fibre, "fibre", owner) if fibre is not None
+                      else 0.0 * area)
+        d = _real(_numeric(damping, "damping [s]", owner, expect="a finite number >= 0"))
+        if d < 0:
+            raise ModelError(f"{owner}: damping [s] must be a finite number >= 0, got {damping!r}")
+        self.damping = _upcast(damping)
         n = X.shape[0]
-        if not (isinstance(reference_node, (int, np.integer)) and -n <= reference_node < n):
+        if not (isinstance(reference_node, (int, np.integer))
+                and not isinstance(reference_node, (bool, np.bool_))
+                and -n <= reference_node < n):
             raise ModelError(
                 f"{owner}: reference_node must be a node index in [0, {n - 1}], "
                 f"got {reference_node!r}"
@@ -268,8 +351,8 @@ class Model:
     """
 
     def __init__(self, gravity=(0.0, 0.0), name: str = "model"):
+        self.name = _check_name(name, "model")
         self.gravity = _point(gravity, "gravity", f"model {name!r}")
-        self.name = name
         self.ground = Ground()
         self.ground._model = self
         self.bodies: list[Body] = []
@@ -281,10 +364,12 @@ class Model:
     def _register(self, body: Body) -> Body:
         if not isinstance(body.name, str) or not body.name:
             raise ModelError(f"bodies need a non-empty string name, got {body.name!r}")
-        if body.name == "ground" or any(b.name == body.name for b in self.bodies):
-            raise ModelError(f"model {self.name!r}: a body named {body.name!r} already exists")
         if body._model is not None and body._model is not self:
-            raise ModelError(f"body {body.name!r} already belongs to another model")
+            raise ModelError(f"body {body.name!r} already belongs to model {body._model.name!r};"
+                             " a body can be part of one model only: create a new one")
+        if body.name == "ground" or any(b.name == body.name for b in self.bodies):
+            raise ModelError(f"model {self.name!r}: a body named {body.name!r} already exists "
+                             "('ground' is reserved); body names must be unique")
         body._model = self
         self.bodies.append(body)
         return body
@@ -299,7 +384,7 @@ class Model:
                  second_moment=None, fibre=None, damping=0.0, reference_node=0,
                  name=None) -> Beam:
         """Add a flexible :class:`Beam` (see there for the parameters and units)."""
-        name = name or f"beam{len(self.bodies)}"
+        name = f"beam{len(self.bodies)}" if name is None else name
         return self._register(Beam(nodes, E=E, rho=rho, thickness=thickness, width=width,
                                    area=area, second_moment=second_moment, fibre=fibre,
                                    damping=damping, reference_node=reference_node, name=name))
@@ -307,12 +392,14 @@ class Model:
     def add_rigid_body(self, *, mass, inertia, position, angle=0.0, velocity=(0.0, 0.0),
                        angular_velocity=0.0, name=None) -> RigidBody:
         """Add a :class:`RigidBody` (reference point = centre of mass)."""
-        name = name or f"body{len(self.bodies)}"
+        name = f"body{len(self.bodies)}" if name is None else name
         return self._register(RigidBody(mass, inertia, position, angle, velocity=velocity,
                                          angular_velocity=angular_velocity, name=name))
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (``"ground"`` for the ground)."""
+        if not isinstance(name, str):
+            raise ModelError(f"model {self.name!r}: body names are strings, got {_show(name)}")
         if name == "ground":
             return self.ground
         for b in self.bodies:
@@ -326,26 +413,42 @@ class Model:
         if isinstance(body, str):
             body = self.body(body)
         if not isinstance(body, Body):
-            raise ModelError(f"{what}: expected a body or a body name, got {body!r}")
-        if body is not self.ground and body not in self.bodies:
-            raise ModelError(f"{what}: body {body.name!r} is not part of model {self.name!r}")
+            raise ModelError(f"{what}: expected a body of this model or its name, "
+                             f"got {_show(body)}")
+        if body is not self.ground and not any(body is b for b in self.bodies):
+            other = body._model.name if body._model is not None else None
+            where = f" (it belongs to model {other!r})" if other is not None else ""
+            raise ModelError(f"{what}: body {body.name!r} is not part of model "
+                             f"{self.name!r}{where}; add it to this model first")
         return body
 
     def _joint_name(self, name, prefix):
-        name = name or f"{prefix}{len(self.joints)}"
+        name = f"{prefix}{len(self.joints)}" if name is None else _check_name(name, "joint")
         if any(j.name == name for j in self.joints):
             raise ModelError(f"model {self.name!r}: a joint named {name!r} already exists")
         return name
 
+    def _load_name(self, name, prefix, count):
+        name = f"{prefix}{count}" if name is None else _check_name(name, "load")
+        if any(ld.name == name for ld in self.forces + self.torques):
+            raise ModelError(f"model {self.name!r}: a load named {name!r} already exists")
+        return name
+
     def _check_point_on(self, body, at, what):
+        """``at`` as a point; on a beam it must be a node (to 1e-6 of the beam's size, at least
+        1e-6 length units). Any point of the plane is a material point of a rigid body."""
         at = _point(at, "at", what)
         if isinstance(body, Beam):
             k, dist = body.nearest_node(at)
             size = float(np.ptp(_real(body.nodes), axis=0).max())
-            if dist > 1e-6 * max(size, 1.0):
+            tol = 1e-6 * max(size, 1.0)
+            if dist > tol:
+                node = tuple(float(x) for x in np.round(_real(body.nodes[k]), 6))
                 raise ModelError(
-                    f"{what}: point {tuple(np.round(_real(at), 6))} is not at a node of beam "
-                    f"{body.name!r}; nearest is node {k} at distance {dist:.6g}"
+                    f"{what}: point {tuple(float(x) for x in np.round(_real(at), 6))} is not at "
+                    f"a node of beam {body.name!r}; nearest is node {k} at {node}, distance "
+                    f"{dist:.6g} (tolerance {tol:.3g}). Joints and loads act at beam nodes: use "
+                    "that node's coordinates or add a node there"
                 )
         return at
 
@@ -398,7 +501,7 @@ class Model:
         body = self._own(body, f"drive {name!r}")
         if body is self.ground:
             raise ModelError(f"drive {name!r}: cannot drive the ground")
-        prof = as_profile(angle, f"drive {name!r}")
+        prof = _profile(angle, f"drive {name!r}")
         f0 = _real(prof.value(0.0))
         if abs(f0) > 1e-12:
             raise ModelError(
@@ -416,31 +519,28 @@ class Model:
     # ---- loads
     def add_force(self, body, *, at, force, profile=None, name=None) -> Force:
         """Apply ``force * profile(t)`` (global direction) at the point ``at`` of ``body``."""
-        name = name or f"force{len(self.forces)}"
+        name = self._load_name(name, "force", len(self.forces))
         body = self._own(body, f"force {name!r}")
         if body is self.ground:
             raise ModelError(f"force {name!r}: cannot load the ground")
         at = self._check_point_on(body, at, f"force {name!r}")
         f = _point(force, "force", f"force {name!r}")
-        ld = Force(body, at, f, as_profile(profile, f"force {name!r}"), name)
+        ld = Force(body, at, f, _profile(profile, f"force {name!r}"), name)
         self.forces.append(ld)
         return ld
 
     def add_torque(self, body, magnitude, *, profile=None, at=None, name=None) -> Torque:
         """Apply a torque ``magnitude * profile(t)`` [N·mm] to ``body`` (at the beam node ``at``
         when given: the torque then also works on that node's rotation)."""
-        name = name or f"torque{len(self.torques)}"
+        name = self._load_name(name, "torque", len(self.torques))
         body = self._own(body, f"torque {name!r}")
         if body is self.ground:
             raise ModelError(f"torque {name!r}: cannot load the ground")
-        mag = _real(magnitude)
-        if mag.shape != () or not math.isfinite(float(mag)):
-            raise ModelError(
-                f"torque {name!r}: magnitude must be a finite number, got {magnitude!r}"
-            )
+        _numeric(magnitude, "magnitude", f"torque {name!r}")
+        magnitude = _upcast(magnitude)
         if at is not None:
             at = self._check_point_on(body, at, f"torque {name!r}")
-        tq = Torque(body, magnitude, as_profile(profile, f"torque {name!r}"), at, name)
+        tq = Torque(body, magnitude, _profile(profile, f"torque {name!r}"), at, name)
         self.torques.append(tq)
         return tq
 
