@@ -5,10 +5,11 @@ Reproduces Gufler, Wehrle, Achleitner, Vidoni: "Flexible multibody dynamics and 
 analysis in the design of a morphing leading edge for high-performance sailplanes".
 """
 
-from . import responses
+from . import io, responses
 from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
+    FormatError,
     ModelError,
     MorphlabError,
     NonFiniteError,
@@ -26,9 +27,10 @@ from .warmup import warmup
 __version__ = "0.1.0"
 
 __all__ = [
-    "Beam", "Constant", "ConvergenceError", "Custom", "GeneralizedAlpha", "Linear", "Model",
+    "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
+    "Linear", "Model",
     "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
-    "SmoothStep", "SolverError", "State", "System", "compile_model", "responses",
+    "SmoothStep", "SolverError", "State", "System", "compile_model", "io", "responses",
     "sensitivities", "simulate", "static", "warmup", "__version__",
 ]

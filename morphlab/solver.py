@@ -23,6 +23,7 @@ residual (and so of its derivatives). ``omega = stabilization / h``; 0 switches 
 
 from __future__ import annotations
 
+import numbers
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -36,6 +37,11 @@ from .compile import System, compile_model
 from .errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
 from .kernels.assemble import add_residual, fill_matrix
 from .model import Model
+
+
+def _is_real(x) -> bool:
+    """A real number that is not a boolean."""
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
 
 
 @dataclass(frozen=True)
@@ -52,7 +58,7 @@ class GeneralizedAlpha:
 
     def __post_init__(self):
         r = self.rho_inf
-        if not (isinstance(r, (int, float)) and 0.0 <= r <= 1.0):
+        if not (_is_real(r) and 0.0 <= r <= 1.0):
             raise ModelError(f"rho_inf must be a number in [0, 1], got {r!r}")
 
     @property
@@ -99,20 +105,26 @@ class Settings:
     t_start: float = 0.0
 
     def validate(self) -> None:
+        """Raise :class:`ModelError` naming the first invalid setting."""
         for name in ("t_end", "dt"):
             v = getattr(self, name)
-            if not isinstance(v, (int, float)) or not np.isfinite(v) or not v > 0:
+            if not _is_real(v) or not np.isfinite(v) or not v > 0:
                 raise ModelError(f"{name} must be a finite positive number, got {v!r}")
         if self.dt > self.t_end - self.t_start:
             raise ModelError(f"dt={self.dt} is larger than the simulated span "
                              f"{self.t_end - self.t_start}")
-        GeneralizedAlpha(self.rho_inf)
-        if not (isinstance(self.tol, float) and 0 < self.tol < 1):
-            raise ModelError(f"tol must be a float in (0, 1), got {self.tol!r}")
-        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+        if not _is_real(self.rho_inf):
+            raise ModelError(f"rho_inf must be a number in [0, 1], got {self.rho_inf!r}")
+        GeneralizedAlpha(float(self.rho_inf))
+        if not (_is_real(self.tol) and 0 < self.tol < 1):
+            raise ModelError(f"tol must be a number in (0, 1), got {self.tol!r}")
+        if not (isinstance(self.max_iter, numbers.Integral)
+                and not isinstance(self.max_iter, (bool, np.bool_)) and self.max_iter >= 1):
             raise ModelError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
-        if not (np.isfinite(self.stabilization) and self.stabilization >= 0):
-            raise ModelError(f"stabilization must be >= 0, got {self.stabilization!r}")
+        for name in ("stabilization", "stabilization_damping"):
+            v = getattr(self, name)
+            if not (_is_real(v) and np.isfinite(v) and v >= 0):
+                raise ModelError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.constraint_form not in ("paper", "endpoint"):
             raise ModelError(f"constraint_form must be 'paper' or 'endpoint', got "
                              f"{self.constraint_form!r}")
@@ -312,6 +324,11 @@ class Stepper:
         self.n_factorizations += 1
         return lu
 
+    def non_finite(self, x, k=8) -> list[str]:
+        """Names of the first ``k`` equations/unknowns with a NaN or Inf entry."""
+        names = self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
+        return [names[i] for i in np.flatnonzero(~np.isfinite(x))[:k]]
+
     def dominant(self, R, k=3) -> list[str]:
         """Names of the ``k`` equations with the largest residual entries."""
         names = self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
@@ -331,15 +348,24 @@ class Stepper:
         for it in range(1, s.max_iter + 1):
             R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
             if not np.all(np.isfinite(R)):
+                bad = self.non_finite(R)
                 raise NonFiniteError(
-                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}); "
-                    f"largest entries: {', '.join(self.dominant(np.nan_to_num(R)))}",
-                    time=t1, step=step, residual=float("nan"))
-            lu = self.factor(z, qh, vh, t1, coef, F=F)
+                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
+                    f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+            try:
+                lu = self.factor(z, qh, vh, t1, coef, F=F)
+            except SingularMatrixError as err:
+                err.step = step
+                err.residual = float(np.linalg.norm(R))
+                err.dominant = self.dominant(R)
+                raise
             dz = lu.solve(-R)
             if not np.all(np.isfinite(dz)):
-                raise NonFiniteError(f"non-finite Newton correction at t={t1:.6g} (step {step})",
-                                     time=t1, step=step, residual=float(np.linalg.norm(R)))
+                bad = self.non_finite(dz)
+                raise NonFiniteError(
+                    f"non-finite Newton correction at t={t1:.6g} (step {step}) in "
+                    f"{', '.join(bad)}", time=t1, step=step,
+                    residual=float(np.linalg.norm(R)), dominant=bad)
             z = z + dz
             if coef.h == 0.0:
                 # linear in z (consistent initial accelerations): one solve is exact
@@ -657,11 +683,14 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     from .errors import SolverError
     from .results import Result
 
-    system = model if isinstance(model, System) else compile_model(model)
-    if not (isinstance(steps, int) and steps >= 1):
+    if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
+            and steps >= 1):
         raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
-    if not np.isfinite(t):
-        raise ModelError(f"t must be finite, got {t!r}")
+    if not (_is_real(t) and np.isfinite(t)):
+        raise ModelError(f"t must be a finite number, got {t!r}")
+    if not (_is_real(tol) and 0 < tol < 1):
+        raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
+    system = model if isinstance(model, System) else compile_model(model)
     settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
                         max_iter=max_iter, stabilization=0.0)
     stp = Stepper(system, settings, scale=1.0)

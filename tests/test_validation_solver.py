@@ -34,28 +34,21 @@ def test_bad_settings_are_refused_by_simulate(kw, name):
 
 # Gaps of solver.Settings.validate, reported to the owner of solver.py (strict: when fixed,
 # these start passing and the marker must be removed).
-@pytest.mark.xfail(strict=True, reason="solver.Settings.validate: bool accepted as max_iter")
 def test_max_iter_true_is_refused():
     with pytest.raises(ml.ModelError, match="max_iter"):
         ml.simulate(flexible_mechanism(), t_end=0.01, dt=1e-3, max_iter=True)
 
 
-@pytest.mark.xfail(strict=True, reason="solver.Settings.validate: NumPy integers refused "
-                                       "(isinstance(np.int64(5), int) is False)")
 def test_numpy_integer_max_iter_is_accepted():
     res = ml.simulate(flexible_mechanism(), t_end=0.002, dt=1e-3, max_iter=np.int64(12))
     assert res.status == "ok"
 
 
-@pytest.mark.xfail(strict=True, reason="solver.Settings.validate: np.isfinite on a string "
-                                       "raises a raw TypeError")
 def test_string_stabilization_is_refused():
     with pytest.raises(ml.ModelError, match="stabilization"):
         ml.simulate(flexible_mechanism(), t_end=0.01, dt=1e-3, stabilization="a")
 
 
-@pytest.mark.xfail(strict=True, reason="solver.Settings.validate: stabilization_damping is "
-                                       "not validated (NaN: NonFiniteError at t=0; -1 accepted)")
 @pytest.mark.parametrize("bad", [np.nan, -1.0])
 def test_bad_stabilization_damping_is_refused(bad):
     with pytest.raises(ml.ModelError, match="stabilization_damping"):
@@ -175,8 +168,6 @@ def test_nan_from_a_profile_raises_non_finite_error():
         assert np.all(np.isfinite(arr))
 
 
-@pytest.mark.xfail(strict=True, reason="solver.Stepper.newton: NonFiniteError carries no "
-                                       ".dominant (and the message lists nan_to_num values)")
 def test_non_finite_error_names_the_non_finite_equations():
     with pytest.raises(ml.NonFiniteError) as err:
         ml.simulate(nan_force_model(4.5e-3), t_end=0.01, dt=1e-3)
