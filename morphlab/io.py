@@ -379,7 +379,7 @@ def _rebuild_model(meta: dict, arrays: dict) -> Model:
                              velocity=p["velocity"], angular_velocity=p["angular_velocity"],
                              name=entry["name"])
         elif entry["kind"] == "beam":
-            fibre = p["fibre"] if np.real(p["fibre"]) != 0 else None
+            fibre = p["fibre"] if np.all(np.real(p["fibre"]) != 0) else None
             body = Beam(p["nodes"], E=p["E"], rho=p["rho"], area=p["area"],
                         second_moment=p["second_moment"], fibre=fibre, damping=p["damping"],
                         reference_node=p["reference_node"], name=entry["name"])

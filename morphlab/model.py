@@ -81,6 +81,20 @@ def _finite_positive(value, what, owner):
     return _upcast(value)
 
 
+def _section_positive(value, what, owner, n_elem):
+    """A positive section/material value: a scalar, or one value per element (n_elem,)."""
+    if np.ndim(value) == 1 and not isinstance(value, (str, bytes)):
+        arr = _numeric(value, what, owner, shape=(n_elem,),
+                       expect=f"a finite positive number or an array of {n_elem} of them "
+                              "(one per element)")
+        if not np.all(_real(arr) > 0):
+            k = int(np.flatnonzero(~(_real(arr) > 0))[0])
+            raise ModelError(f"{owner}: {what} of element {k} must be positive, got "
+                             f"{_show(arr[k])}")
+        return arr
+    return _finite_positive(value, what, owner)
+
+
 def _point(at, what, owner):
     return _numeric(at, what, owner, shape=(2,), expect="a finite pair (x, y) of numbers")
 
@@ -163,13 +177,15 @@ class Beam(Body):
     ----------
     nodes : (n_node, 2)
         Initial global node positions [mm]; element ``e`` joins nodes ``e`` and ``e + 1``.
-    E, rho : float
+    E, rho : float or (n_elem,)
         Young's modulus [MPa] and density [t/mm³].
-    thickness, width : float, optional
+    thickness, width : float or (n_elem,), optional
         Rectangular section (in-plane thickness ``t`` and out-of-plane width ``b``) [mm]:
         ``A = b t``, ``I = b t³/12``, fibre distance ``t/2``.
-    area, second_moment, fibre : float, optional
+    area, second_moment, fibre : float or (n_elem,), optional
         General section instead of a rectangle [mm², mm⁴, mm].
+
+    Every material and section value is a scalar or one value per element.
     damping : float
         Stiffness-proportional damping coefficient ``beta_d`` [s]: ``D = beta_d K``.
     reference_node : int
@@ -209,15 +225,20 @@ class Beam(Body):
                 " consecutive nodes must be distinct"
             )
         self.nodes = _upcast(X)
-        self.E = _finite_positive(E, "E", owner)
-        self.rho = _finite_positive(rho, "rho", owner)
+        n_el = X.shape[0] - 1
+
+        def positive(value, what):
+            return _section_positive(value, what, owner, n_el)
+
+        self.E = positive(E, "E")
+        self.rho = positive(rho, "rho")
         if thickness is not None or width is not None:
             if thickness is None or width is None:
                 raise ModelError(f"{owner}: a rectangular section needs both thickness and width")
             if area is not None or second_moment is not None:
                 raise ModelError(f"{owner}: give thickness/width or area/second_moment, not both")
-            thickness = _finite_positive(thickness, "thickness", owner)
-            width = _finite_positive(width, "width", owner)
+            thickness = positive(thickness, "thickness")
+            width = positive(width, "width")
             area = width * thickness
             # a product, not thickness**3: Python floats raise OverflowError on a huge power
             second_moment = width * thickness * thickness * thickness / 12.0
@@ -231,11 +252,9 @@ class Beam(Body):
             derived = ""
         self.thickness = thickness
         self.width = width
-        self.area = _finite_positive(area, "area", owner)
-        self.second_moment = _finite_positive(second_moment, f"second_moment{derived}",
-                                              owner)
-        self.fibre = (_finite_positive(fibre, "fibre", owner) if fibre is not None
-                      else 0.0 * area)
+        self.area = positive(area, "area")
+        self.second_moment = positive(second_moment, f"second_moment{derived}")
+        self.fibre = positive(fibre, "fibre") if fibre is not None else 0.0 * area
         d = _real(_numeric(damping, "damping [s]", owner, expect="a finite number >= 0"))
         if d < 0:
             raise ModelError(f"{owner}: damping [s] must be a finite number >= 0, got {damping!r}")

@@ -90,7 +90,9 @@ def test_point_within_tolerance_of_a_node_is_accepted_and_rigid_points_are_anywh
 
 # -------------------------------------------------------------------------------- parameters
 @pytest.mark.parametrize("param", ["E", "rho", "thickness", "width"])
-@pytest.mark.parametrize("bad", [0.0, -1.0, np.nan, np.inf, "7e4", None, True, (1.0, 2.0)])
+# (1.0, 2.0, 3.0): one value per element is allowed, but this beam has 2 elements
+@pytest.mark.parametrize("bad", [0.0, -1.0, np.nan, np.inf, "7e4", None, True, (1.0, 2.0, 3.0),
+                                 (1.0, -2.0)])
 def test_beam_parameters_must_be_finite_positive(param, bad):
     kw = dict(BEAM)
     kw[param] = bad
@@ -100,8 +102,16 @@ def test_beam_parameters_must_be_finite_positive(param, bad):
     msg = str(err.value)
     assert "beam 'skin'" in msg and param in msg
     if bad is not None:  # None means "not given": the message asks for the pair instead
-        assert "finite positive number" in msg
+        assert "finite positive number" in msg or "must be positive" in msg
     assert not m.bodies
+
+
+@pytest.mark.parametrize("param", ["E", "rho", "thickness", "width"])
+def test_beam_parameters_may_be_given_per_element(param):
+    kw = dict(BEAM)
+    kw[param] = (kw[param], 1.5 * kw[param])
+    b = ml.Model().add_beam(straight_nodes(2), name="skin", **kw)
+    assert np.shape(getattr(b, param)) == (2,)
 
 
 @pytest.mark.parametrize("param", ["mass", "inertia"])

@@ -1,0 +1,230 @@
+"""The paper's study of a morphing skin: responses, sensitivities, timing, figures, JSON.
+
+:func:`run_study` is model-agnostic: it takes a parametric ``build(p)``, the design ``p0``, the
+responses and solver settings, the beam to report on and its target shape.
+:func:`morphlab.morphing.study` calls it with the leading-edge model.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import statistics
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .responses import distance
+from .sensitivity import sensitivities
+
+
+@dataclass
+class StudyResult:
+    """Everything the study computed; ``summary`` is what the JSON file holds."""
+
+    summary: dict
+    sensitivity: object
+    node_errors: np.ndarray
+    node_error_gradients: np.ndarray
+    stress_gradients: np.ndarray
+    figures: dict = field(default_factory=dict)
+    report: str = ""
+
+    def __str__(self) -> str:
+        return self.report
+
+
+def _median_time(fn, repeats: int) -> tuple[float, list[float]]:
+    times = []
+    for _ in range(repeats):
+        t0 = _time.perf_counter()
+        fn()
+        times.append(_time.perf_counter() - t0)
+    return statistics.median(times), times
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.4g}" if abs(x) >= 1e-3 or x == 0 else f"{x:.4e}"
+
+
+def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, target,
+              undeformed, paper: dict, units: dict, out=None, figures: bool = True,
+              timing: bool = True, repeats: int = 3, fd_step: float = 1e-6,
+              progress: bool = False, notes: str = "") -> StudyResult:
+    """Run the study and (with ``out``) write figures and ``out/morphing.json``.
+
+    Parameters
+    ----------
+    build, p0, responses, settings :
+        Parametric model, nominal design, response functions (must include
+        ``"ks_max_stress"`` and ``"rms_error"``; ``"max_error"`` is reported too) and
+        :func:`morphlab.simulate` keyword arguments.
+    body : str
+        The beam whose stress and shape are reported.
+    target, undeformed : (n_nodes, 2)
+        Target and undeformed node positions [mm].
+    paper : dict
+        The paper's numbers, reported beside ours.
+    units : dict
+        Units of the design variables, for the tables.
+    out : path, optional
+        Output folder (created).
+    figures, timing : bool
+        Write the figures; time the finite-difference comparison (Table 2).
+    repeats : int
+        Repetitions of each timed run (the median is reported).
+    fd_step : float
+        Relative step of the finite differences.
+    """
+    names = list(p0)
+    sens = sensitivities(build, p0, responses, method="direct", progress=progress,
+                         **settings)
+    res = sens.result
+    final = res.node_positions(body)[-1]
+    e_k = np.real(distance(final, target))
+    de_k = np.real(sens.derivative(lambda r: distance(r.node_positions(body)[-1], target)))
+    dsig = np.real(sens.stress(body))
+    stress = np.real(res.stress(body))
+
+    timing_s: dict = {}
+    if timing:
+        from .compile import compile_model
+        from .solver import simulate
+
+        sys0 = compile_model(build(dict(p0)))
+        timing_s["primal"], timing_s["primal_runs"] = _median_time(
+            lambda: simulate(sys0, **settings), repeats)
+        timing_s["direct"], timing_s["direct_runs"] = _median_time(
+            lambda: sensitivities(build, p0, responses, method="direct", **settings), repeats)
+        timing_s["direct_fd"], timing_s["direct_fd_runs"] = _median_time(
+            lambda: sensitivities(build, p0, responses, method="direct-fd", step=fd_step,
+                                  **settings), repeats)
+        timing_s["finite_difference"], timing_s["finite_difference_runs"] = _median_time(
+            lambda: sensitivities(build, p0, responses, method="forward-difference",
+                                  step=fd_step, **settings), max(1, repeats // 2))
+        for k in ("direct", "direct_fd", "finite_difference"):
+            timing_s[f"{k}_over_primal"] = timing_s[k] / timing_s["primal"]
+        timing_s["finite_difference_over_direct"] = (timing_s["finite_difference"]
+                                                     / timing_s["direct"])
+
+    rot = np.real(res.node_rotations(body)[-1])
+    seg0 = np.sqrt(np.sum(np.diff(np.real(res.node_positions(body)[0]), axis=0) ** 2, axis=1))
+    seg1 = np.sqrt(np.sum(np.diff(np.real(final), axis=0) ** 2, axis=1))
+    summary = {
+        "ks_max_stress_MPa": sens.values["ks_max_stress"],
+        "max_stress_MPa": float(np.max(np.abs(stress))),
+        "max_error_mm": float(np.max(e_k)),
+        "rms_error_mm": float(np.sqrt(np.mean(e_k**2))),
+        "node_errors_mm": e_k.tolist(),
+        "sensitivities": {
+            "ks_max_stress_MPa": dict(sens.gradients["ks_max_stress"]),
+            "rms_error_mm": dict(sens.gradients["rms_error"]),
+        },
+        "timing_s": {k: v for k, v in timing_s.items()},
+        "design": dict(p0),
+        "settings": dict(settings),
+        "diagnostics": {
+            "newton_iterations_mean": float(np.mean(res.newton_iterations[1:])),
+            "max_constraint_violation_mm": float(np.max(res.constraint_violation)),
+            "largest_node_rotation_rad": float(np.max(np.abs(rot))),
+            "arc_length_change_mm": float(np.sum(seg1) - np.sum(seg0)),
+            "factorizations": int(res.n_factorizations),
+        },
+        "paper": paper,
+    }
+    if "max_error" in sens.gradients:
+        summary["sensitivities"]["max_error_mm"] = dict(sens.gradients["max_error"])
+
+    report = _report(summary, names, units, paper, notes)
+    study = StudyResult(summary=summary, sensitivity=sens, node_errors=e_k,
+                        node_error_gradients=de_k, stress_gradients=dsig, report=report)
+    if out is not None:
+        outp = pathlib.Path(out)
+        outp.mkdir(parents=True, exist_ok=True)
+        if figures:
+            study.figures = _figures(study, res, body, target, undeformed, names, units, outp)
+        tmp = outp / "morphing.json.tmp"
+        tmp.write_text(json.dumps(summary, indent=2), encoding="utf-8")
+        os.replace(tmp, outp / "morphing.json")
+        (outp / "report.txt").write_text(report + "\n", encoding="utf-8")
+    return study
+
+
+def _report(s: dict, names, units, paper, notes) -> str:
+    lines = ["Morphing leading edge: primal responses (ours | paper)"]
+    lines.append(f"  KS max stress   {s['ks_max_stress_MPa']:10.4g} MPa | "
+                 f"{paper.get('ks_max_stress_MPa', float('nan')):.5g} MPa")
+    lines.append(f"  max shape error {s['max_error_mm']:10.4g} mm  | "
+                 f"{paper.get('max_error_mm', float('nan')):.4g} mm")
+    lines.append(f"  RMS shape error {s['rms_error_mm']:10.4g} mm  | "
+                 f"{paper.get('rms_error_mm', float('nan')):.4g} mm")
+    lines.append("")
+    lines.append("Table 1: design sensitivities (ours / paper)")
+    head = "  response            " + "".join(f"d/d{n} [/{units.get(n, '-')}]".rjust(24)
+                                              for n in names)
+    lines.append(head)
+    for key, label in (("ks_max_stress_MPa", "dσ_KS [MPa]"), ("rms_error_mm", "de_rms [mm]")):
+        ours = s["sensitivities"][key]
+        ref = paper.get("table1", {}).get(key, {})
+        row = f"  {label:18s}" + "".join(
+            f"{_fmt(ours[n]) + ' / ' + (_fmt(ref[n]) if n in ref else '-'):>24s}"
+            for n in names)
+        lines.append(row)
+    t = s["timing_s"]
+    if t:
+        lines.append("")
+        lines.append("Table 2: wall time, median of repeated runs on this machine (paper: "
+                     "i7-8700)")
+        p2 = paper.get("table2_s", {})
+        for key, label in (("primal", "one primal run"),
+                           ("direct", "direct differentiation (complex-step pseudo-loads)"),
+                           ("direct_fd", "direct differentiation (FD pseudo-loads, paper)"),
+                           ("finite_difference", f"finite differences ({len(names) + 1} runs)")):
+            ratio = t[key] / t["primal"]
+            ref = p2.get(key)
+            ref_s = f"{ref:8.1f} s ({ref / p2['primal']:.2f}x)" if ref else "       -"
+            lines.append(f"  {label:52s} {t[key]:8.3f} s ({ratio:5.2f}x) | paper {ref_s}")
+        lines.append(f"  finite differences / direct: {t['finite_difference_over_direct']:.2f}"
+                     f" (paper {p2.get('finite_difference', 0) / p2.get('direct', 1):.2f})")
+    d = s["diagnostics"]
+    lines.append("")
+    lines.append(f"Diagnostics: Newton iterations/step {d['newton_iterations_mean']:.2f}, max "
+                 f"|Phi| {d['max_constraint_violation_mm']:.2e} mm, largest node rotation "
+                 f"{d['largest_node_rotation_rad']:.3f} rad, skin arc-length change "
+                 f"{d['arc_length_change_mm']:+.3f} mm")
+    if notes:
+        lines.append("")
+        lines.append(notes)
+    return "\n".join(lines)
+
+
+def _figures(study: StudyResult, res, body, target, undeformed, names, units, outp) -> dict:
+    from . import plots
+
+    written = {}
+    arc = plots.arc_coordinate(np.real(undeformed))
+
+    def save(fig, name):
+        path = outp / f"{name}.png"
+        fig.savefig(path, dpi=120)
+        written[name] = str(path)
+
+    save(plots.snapshots(res, n=6, target=target), "fig5b_motion")
+    save(plots.stress_map(res.t, np.real(res.stress(body)), arc=arc), "fig6_stress")
+    save(plots.profile_comparison(undeformed, target, np.real(res.node_positions(body)[-1])),
+         "fig7_profiles")
+    # one value per element and time, at the end and fibre where |stress| is largest (the
+    # same point the stress map shows)
+    sig = np.real(res.stress(body))
+    idx = np.argmax(np.abs(sig.reshape(sig.shape[0], sig.shape[1], -1)), axis=-1)
+    for i, n in enumerate(names):
+        flat = study.stress_gradients[..., i].reshape(sig.shape[0], sig.shape[1], -1)
+        val = np.take_along_axis(flat, idx[..., None], axis=-1)[..., 0]
+        save(plots.sensitivity_map(res.t, val, n, arc=arc, quantity_unit="MPa",
+                                   variable_unit=units.get(n)), f"fig8_stress_sens_{n}")
+    save(plots.node_sensitivities({n: study.node_error_gradients[:, i]
+                                   for i, n in enumerate(names)}, normalize=True),
+         "fig9_error_sens")
+    return written
