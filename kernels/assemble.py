@@ -62,8 +62,8 @@ def _perturbed_tuple(S, P, i):
 
 
 @njit(cache=True)
-def pseudo_residuals(S, P, q, v, a, lam, dq, dv, da, dlam, pert, h, beta, gamma, has_old,
-                     w_old, w_new, z, scale, b0, b1, TA_old, TA_new, n_dof, out):
+def pseudo_residuals(S, P, q, v, a, g, lam, dq, dv, da, dg, dlam, pert, pc, has_old, w_old,
+                     w_new, z, scale, b0, b1, TA_old, TA_new, n_dof, out):
     """Step residuals of every perturbed design in one call (sensitivity pseudo-loads).
 
     For design variable ``i``, the state at ``t_n`` is ``s_n + pert[i] ds_n[:, i]`` and the
@@ -76,14 +76,17 @@ def pseudo_residuals(S, P, q, v, a, lam, dq, dv, da, dlam, pert, h, beta, gamma,
         Nominal system arrays (integer tables are shared).
     P : tuple
         The arrays of ``S`` at positions :data:`PERTURBED`, stacked over the n_x designs.
-    q, v, a, lam : (n_dof,), (n_con,)
-        State at ``t_n`` (or the initial state when ``has_old`` is False).
-    dq, dv, da, dlam : (n_dof, n_x), (n_con, n_x)
+    q, v, a, g, lam : (n_dof,), (n_con,)
+        State at ``t_n`` (``g``: algorithmic acceleration).
+    dq, dv, da, dg, dlam : (n_dof, n_x), (n_con, n_x)
         Its sensitivities.
     pert : (n_x,)
         Perturbation size: ``1e-30j`` (complex step) or the finite-difference steps.
-    h, beta, gamma : float
-        Step size and Newmark parameters (``h = 0`` for the initial solve).
+    pc : (7,)
+        ``(h, cqa, cqg, cva, cvg, bh2, gh)`` of the Newmark update (all 0 for the initial
+        solve), see ``morphlab.solver.StepCoefficients``.
+    has_old : bool
+        Whether the residual has an old-level share (the paper's weighting).
     w_old, w_new : (5,) arrays
         Weights ``(wm, wl, wf, wcm, wcf)`` of the old and new time level.
     z : (n,)
@@ -97,19 +100,20 @@ def pseudo_residuals(S, P, q, v, a, lam, dq, dv, da, dlam, pert, h, beta, gamma,
     n = out.shape[1]
     n_con = n - n_dof
     dt = out.dtype
-    bh2 = beta * h * h
-    gh = gamma * h
+    h, cqa, cqg, cva, cvg, bh2, gh = pc[0], pc[1], pc[2], pc[3], pc[4], pc[5], pc[6]
     for i in range(n_x):
         Si = _perturbed_tuple(S, P, i)
         e = pert[i]
         qp = np.empty(n_dof, dtype=dt)
         vp = np.empty(n_dof, dtype=dt)
         ap = np.empty(n_dof, dtype=dt)
+        gp = np.empty(n_dof, dtype=dt)
         lp = np.empty(n_con, dtype=dt)
         for k in range(n_dof):
             qp[k] = q[k] + e * dq[k, i]
             vp[k] = v[k] + e * dv[k, i]
             ap[k] = a[k] + e * da[k, i]
+            gp[k] = g[k] + e * dg[k, i]
         for k in range(n_con):
             lp[k] = lam[k] + e * dlam[k, i]
         R = out[i]
@@ -124,8 +128,8 @@ def pseudo_residuals(S, P, q, v, a, lam, dq, dv, da, dlam, pert, h, beta, gamma,
         l1 = np.empty(n_con, dtype=dt)
         for k in range(n_dof):
             a1[k] = z[k]
-            q1[k] = qp[k] + h * vp[k] + (0.5 - beta) * h * h * ap[k] + bh2 * z[k]
-            v1[k] = vp[k] + (1.0 - gamma) * h * ap[k] + gh * z[k]
+            q1[k] = qp[k] + h * vp[k] + cqa * ap[k] + cqg * gp[k] + bh2 * z[k]
+            v1[k] = vp[k] + cva * ap[k] + cvg * gp[k] + gh * z[k]
         for k in range(n_con):
             l1[k] = z[n_dof + k] * scale
         add_residual(Si, q1, v1, a1, l1, w_new[0], w_new[1], w_new[2], w_new[3], w_new[4],

@@ -449,7 +449,10 @@ def compile_model(model: Model, dtype=None) -> System:
     for j in model.joints:
         if getattr(j, "at", None) is not None:
             extent = np.vstack([extent, np.real(np.asarray(j.at))[None]])
-    sysd["length_scale"] = float(max(np.ptp(extent, axis=0).max(), 1e-300))
+    # model size for the Newton test; a model whose bodies and joints share one point has no
+    # extent: fall back to 1 (a unit-agnostic "no scale")
+    size = float(np.ptp(extent, axis=0).max())
+    sysd["length_scale"] = size if size > 0 else 1.0
     sysd.update(_pattern(sysd))
     system = System(**sysd)
     _check_initial(system)

@@ -41,7 +41,16 @@ from .compile import System, compile_model
 from .errors import SensitivityError
 from .kernels.assemble import PERTURBED, pseudo_residuals
 from .results import Result
-from .solver import Settings, StepInfo, integrate, kernel_arrays, table_at, time_table
+from .solver import (
+    Settings,
+    StepInfo,
+    integrate,
+    kernel_arrays,
+    newmark_predict,
+    newmark_update,
+    table_at,
+    time_table,
+)
 
 # Refine the direct solve against the exact converged matrix only when the last Newton
 # correction (relative to the model size) exceeds this: below it, the lagged LU's relative
@@ -178,7 +187,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
                   variables: list | None = None, step: float = 1e-6, tol: float = 1e-10,
                   max_iter: int = 12, stabilization: float = 0.5,
                   stabilization_damping: float = 1.0, constraint_form: str = "paper",
-                  refine: int = 2, progress: bool = False) -> SensitivityResult:
+                  scheme: str = "arnold-bruls", refine: int = 2,
+                  progress: bool = False) -> SensitivityResult:
     """Values and design gradients of ``responses`` of the model ``build(p0)``.
 
     Parameters
@@ -190,7 +200,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
         Nominal design.
     responses : dict[str, callable]
         ``f(result) -> scalar``, complex-safe (see :mod:`morphlab.responses`).
-    t_end, dt, rho_inf, tol, max_iter, stabilization, stabilization_damping, constraint_form :
+    t_end, dt, rho_inf, tol, max_iter, stabilization, stabilization_damping, constraint_form,
+    scheme :
         Solver settings, as in :func:`morphlab.simulate`.
     method : str
         ``"direct"``, ``"direct-fd"``, ``"complex-step"``, ``"forward-difference"`` or
@@ -233,7 +244,7 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
                         stabilization=stabilization,
                         stabilization_damping=stabilization_damping,
-                        constraint_form=constraint_form)
+                        constraint_form=constraint_form, scheme=scheme)
     settings.validate()
     p0 = {k: float(np.real(v)) for k, v in p0.items()}
     # relative steps (a density of 2.7e-9 t/mm^3 must not get an absolute step)
@@ -323,33 +334,37 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
     else:
         dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
         dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
-    D = {"q": np.zeros((n_steps + 1, n_dof, n_x)), "v": np.zeros((n_steps + 1, n_dof, n_x)),
-         "a": np.zeros((n_steps + 1, n_dof, n_x)), "lam": np.zeros((n_steps + 1, n_con, n_x))}
+    shape = (n_steps + 1, n_dof, n_x)
+    D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
+         "g": np.zeros(shape), "lam": np.zeros((n_steps + 1, n_con, n_x))}
     D["q"][0], D["v"][0] = dq0, dv0
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
     out = np.zeros((n_x, sys0.n), dtype=dt_)
     zero_con = np.zeros((n_con, n_x))
+    zero_w = np.zeros(5)
 
     def pseudo_loads(info: StepInfo):
         """D R (n, n_x): directional derivative of the step residual for each variable."""
         stp = info.stepper
         coef = info.coef
         n = info.n
+        pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
         if info.prev is None:
             st = info.state
-            args = (st.q, st.v, st.a * 0.0, st.lam * 0.0, D["q"][0], D["v"][0],
-                    D["a"][0], zero_con, 0.0, False, coef.new, coef.new,
-                    table_at(TAB, 0), table_at(TAB, 0))
+            zero = np.zeros_like(st.a)
+            args = (st.q, st.v, zero, zero, st.lam * 0.0, D["q"][0], D["v"][0], D["a"][0],
+                    D["g"][0], zero_con, table_at(TAB, 0), table_at(TAB, 0))
         else:
             st = info.prev
-            args = (st.q, st.v, st.a, st.lam, D["q"][n - 1], D["v"][n - 1], D["a"][n - 1],
-                    D["lam"][n - 1], coef.h, True, coef.old, coef.new,
-                    table_at(TAB, n - 1), table_at(TAB, n))
-        (q, v, a, lam, dq, dv, da, dlam, h, has_old, w_old, w_new, ta_old, ta_new) = args
-        pseudo_residuals(stp.S, P, q.astype(dt_), v.astype(dt_), a.astype(dt_),
-                         lam.astype(dt_), dq, dv, da, dlam, pert, h, coef.beta, coef.gamma,
-                         has_old, np.asarray(w_old, dtype=np.float64),
-                         np.asarray(w_new, dtype=np.float64), info.z, stp.scale, stp.b0,
+            args = (st.q, st.v, st.a, st.g, st.lam, D["q"][n - 1], D["v"][n - 1],
+                    D["a"][n - 1], D["g"][n - 1], D["lam"][n - 1], table_at(TAB, n - 1),
+                    table_at(TAB, n))
+        q, v, a, g, lam, dq, dv, da, dg, dlam, ta_old, ta_new = args
+        has_old = coef.old is not None
+        pseudo_residuals(stp.S, P, q.astype(dt_), v.astype(dt_), a.astype(dt_), g.astype(dt_),
+                         lam.astype(dt_), dq, dv, da, dg, dlam, pert, pc, has_old,
+                         np.asarray(coef.old if has_old else zero_w, dtype=np.float64),
+                         np.asarray(coef.new, dtype=np.float64), info.z, stp.scale, stp.b0,
                          stp.b1, ta_old, ta_new, n_dof, out)
         if complex_mode:
             return np.imag(out).T / CS_STEP
@@ -367,7 +382,7 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         b = -pseudo_loads(info)
         x = info.lu.solve(b)
         # The LU is one Newton iterate behind (taken at z_k, z* = z_k + dz): its relative error
-        # is O(|dz|). When the last position correction exceeds `refine_tol` of the model
+        # is O(|dz|). When the last position correction exceeds REFINE_TOL of the model
         # size, refine against the exact matrix at z* (assembled, not factored).
         last = info.newton_history[-1][1] if info.newton_history else 0.0
         if refine and info.prev is not None and last > REFINE_TOL:
@@ -383,15 +398,13 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         da = x[:n_dof]
         dlam = x[n_dof:] * stp.scale
         if info.prev is None:
-            D["a"][0], D["lam"][0] = da, dlam
+            D["a"][0], D["g"][0], D["lam"][0] = da, da, dlam
         else:
             coef = info.coef
-            g = stp.method
-            h = coef.h
-            dqh = D["q"][n - 1] + h * D["v"][n - 1] + (0.5 - g.beta) * h * h * D["a"][n - 1]
-            dvh = D["v"][n - 1] + (1.0 - g.gamma) * h * D["a"][n - 1]
-            D["q"][n] = dqh + coef.bh2 * da
-            D["v"][n] = dvh + coef.gh * da
+            k = n - 1
+            dqh, dvh = newmark_predict(coef, D["q"][k], D["v"][k], D["a"][k], D["g"][k])
+            D["q"][n], D["v"][n], D["g"][n] = newmark_update(coef, dqh, dvh, da, D["a"][k],
+                                                             D["g"][k])
             D["a"][n] = da
             D["lam"][n] = dlam
         stats["sensitivity_time"] += _time.perf_counter() - t0

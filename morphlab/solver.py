@@ -81,13 +81,16 @@ class GeneralizedAlpha:
 
 
 class State(NamedTuple):
-    """Solution at one time: ``t``, ``q`` (n_dof), ``v`` = q', ``a`` = q'', ``lam`` (n_con)."""
+    """Solution at one time: ``t``, ``q`` (n_dof), ``v`` = q', ``a`` = q'' and ``lam``
+    (n_con); ``g`` is the algorithmic acceleration of the generalized-alpha recurrence (equal
+    to ``a`` for the paper's form)."""
 
     t: float
     q: np.ndarray
     v: np.ndarray
     a: np.ndarray
     lam: np.ndarray
+    g: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -103,6 +106,7 @@ class Settings:
     stabilization_damping: float = 1.0
     constraint_form: str = "paper"
     t_start: float = 0.0
+    scheme: str = "arnold-bruls"
 
     def validate(self) -> None:
         """Raise :class:`ModelError` naming the first invalid setting."""
@@ -125,6 +129,9 @@ class Settings:
             v = getattr(self, name)
             if not (_is_real(v) and np.isfinite(v) and v >= 0):
                 raise ModelError(f"{name} must be a finite number >= 0, got {v!r}")
+        if self.scheme not in SCHEMES:
+            raise ModelError(f"scheme must be one of {', '.join(map(repr, SCHEMES))}, got "
+                             f"{self.scheme!r}")
         if self.constraint_form not in ("paper", "endpoint"):
             raise ModelError(f"constraint_form must be 'paper' or 'endpoint', got "
                              f"{self.constraint_form!r}")
@@ -155,23 +162,77 @@ def kernel_arrays(system: System, dtype=None) -> tuple:
             s.con_map_col, s.con_map_H, s.load_map)
 
 
+SCHEMES = ("arnold-bruls", "paper")
+
+
 @dataclass
 class StepCoefficients:
-    """Weights of one residual evaluation: new level (``n+1``) and old level (``n``)."""
+    """One step of the generalized-alpha recurrence, as data.
+
+    The unknown is ``a = q''_{n+1}``; with ``g`` the algorithmic acceleration::
+
+        q_{n+1} = q_hat + bh2 a,   q_hat = q_n + h v_n + cqa a_n + cqg g_n
+        v_{n+1} = v_hat + gh a,    v_hat = v_n + cva a_n + cvg g_n
+        g_{n+1} = ga a + gan a_n + ggn g_n
+
+    and the residual is ``E(s_{n+1}; new) + E(s_n; old)`` (``old is None``: no history).
+    The update is linear, so :func:`newmark_predict` / :func:`newmark_update` advance states
+    ``(n,)`` and sensitivity columns ``(n, n_x)`` alike.
+    """
 
     h: float
-    beta: float
-    gamma: float
-    new: tuple  # (wm, wl, wf, wcm, wcf)
+    new: tuple  # weights (wm, wl, wf, wcm, wcf)
     old: tuple | None
+    bh2: float
+    gh: float
+    pred: tuple = (0.0, 0.0, 0.0, 0.0)  # (cqa, cqg, cva, cvg)
+    upd: tuple = (1.0, 0.0, 0.0)  # (ga, gan, ggn)
 
-    @property
-    def bh2(self) -> float:
-        return self.beta * self.h * self.h
 
-    @property
-    def gh(self) -> float:
-        return self.gamma * self.h
+def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,
+                      constraint_form: str = "paper") -> StepCoefficients:
+    """Coefficients of a step of length ``h``.
+
+    ``"arnold-bruls"`` (default; Arnold & Brüls 2007, Multibody Syst. Dyn. 18:185–202): the
+    equations of motion and the acceleration constraints hold at ``t_{n+1}`` for the physical
+    acceleration ``a``, and the algorithmic acceleration obeys
+    ``(1 - alpha_m) g_{n+1} + alpha_m g_n = (1 - alpha_f) a_{n+1} + alpha_f a_n``. Second order
+    for every ``rho_inf``.
+
+    ``"paper"`` (eq. 25–26): the residual weights ``M a + J^T lam`` with ``alpha_m`` and the
+    forces with ``alpha_f`` between ``t_n`` and ``t_{n+1}`` and ``a`` is the algorithmic
+    acceleration. Second order for ``rho_inf = 1`` (where both schemes coincide) and for linear
+    systems; with a configuration-dependent mass matrix or constraints the weighting mixes
+    values ``(alpha_m - alpha_f) h`` apart and the error is first order (measured: pendulum
+    period error slope 0.96 at rho_inf = 0.9, tests/test_convergence_dt.py).
+    """
+    am, af, b, gm = method.alpha_m, method.alpha_f, method.beta, method.gamma
+    if scheme == "paper":
+        w_m, w_f = (am, af) if constraint_form == "paper" else (0.0, 0.0)
+        return StepCoefficients(
+            h, (1 - am, 1 - am, 1 - af, 1 - w_m, 1 - w_f), (am, am, af, w_m, w_f),
+            b * h * h, gm * h, ((0.5 - b) * h * h, 0.0, (1 - gm) * h, 0.0), (1.0, 0.0, 0.0))
+    r = 1.0 / (1.0 - am)
+    return StepCoefficients(
+        h, (1.0, 1.0, 1.0, 1.0, 1.0), None, b * h * h * (1 - af) * r, gm * h * (1 - af) * r,
+        (b * h * h * af * r, (0.5 - b) * h * h - b * h * h * am * r,
+         gm * h * af * r, (1 - gm) * h - gm * h * am * r),
+        ((1 - af) * r, af * r, -am * r))
+
+
+def newmark_predict(coef: StepCoefficients, q, v, a, g):
+    """Predictors ``(q_hat, v_hat)``; works on states (n,) and sensitivities (n, n_x)."""
+    cqa, cqg, cva, cvg = coef.pred
+    return q + coef.h * v + cqa * a + cqg * g, v + cva * a + cvg * g
+
+
+def newmark_update(coef: StepCoefficients, qh, vh, a1, a, g):
+    """``(q_{n+1}, v_{n+1}, g_{n+1})`` from the predictors and the new acceleration ``a1``."""
+    ga, gan, ggn = coef.upd
+    return qh + coef.bh2 * a1, vh + coef.gh * a1, ga * a1 + gan * a + ggn * g
+
+
+INITIAL = StepCoefficients(0.0, (1.0, 1.0, 1.0, 1.0, 1.0), None, 0.0, 0.0)
 
 
 class Stepper:
@@ -194,13 +255,9 @@ class Stepper:
         om = settings.stabilization / h if settings.stabilization > 0 else 0.0
         self.b1 = 2.0 * settings.stabilization_damping * om
         self.b0 = om * om
-        g = self.method
-        w_m, w_f = (g.alpha_m, g.alpha_f) if settings.constraint_form == "paper" else (0.0, 0.0)
-        self.step_coef = StepCoefficients(
-            h, g.beta, g.gamma,
-            (1 - g.alpha_m, 1 - g.alpha_m, 1 - g.alpha_f, 1 - w_m, 1 - w_f),
-            (g.alpha_m, g.alpha_m, g.alpha_f, w_m, w_f))
-        self.init_coef = StepCoefficients(0.0, g.beta, g.gamma, (1.0, 1.0, 1.0, 1.0, 1.0), None)
+        self.step_coef = step_coefficients(settings.scheme, self.method, h,
+                                           settings.constraint_form)
+        self.init_coef = INITIAL
         self.data = np.zeros(system.nnz, dtype=self.dtype)
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
@@ -221,12 +278,9 @@ class Stepper:
         d = d[d > 0]
         return float(np.median(d)) if d.size else 1.0
 
-    def predict(self, st: State, h: float):
-        """Newmark predictors ``(q_hat, v_hat)`` with ``q = q_hat + beta h² a``."""
-        g = self.method
-        qh = st.q + h * st.v + (0.5 - g.beta) * h * h * st.a
-        vh = st.v + (1.0 - g.gamma) * h * st.a
-        return qh, vh
+    def predict(self, st: State, coef: StepCoefficients):
+        """Newmark predictors ``(q_hat, v_hat)`` with ``q = q_hat + bh2 a``."""
+        return newmark_predict(coef, st.q, st.v, st.a, st.g)
 
     def history(self, st: State, coef: StepCoefficients, system=None, system_S=None,
                 dtype=None, ta=None):
@@ -391,8 +445,8 @@ class Stepper:
     # ---- the two kinds of solve
     def substep_coefficients(self, h: float) -> StepCoefficients:
         """Coefficients of a step of length ``h`` (same method and weights)."""
-        c = self.step_coef
-        return StepCoefficients(h, c.beta, c.gamma, c.new, c.old)
+        s = self.settings
+        return step_coefficients(s.scheme, self.method, h, s.constraint_form)
 
     def advance(self, st: State, t1: float, step: int, ta_old, ta_new, max_halvings: int,
                 reductions: list):
@@ -431,19 +485,20 @@ class Stepper:
         R_hist = np.zeros(self.n, dtype=self.dtype)
         z, lu, it, hist = self.newton(n0, q0, v0, t0, self.init_coef, R_hist, 0, ta=ta)
         a = z[: self.n_dof]
-        return State(t0, q0.copy(), v0.copy(), a, z[self.n_dof:] * self.scale), lu, z
+        return State(t0, q0.copy(), v0.copy(), a, z[self.n_dof:] * self.scale, a.copy()), lu, z
 
     def step(self, st: State, t1: float, step: int, ta_old=None, ta_new=None, coef=None):
         """Advance one step from ``st`` to ``t1`` (``ta_old``, ``ta_new``: time arrays at both
         ends, when precomputed; ``coef``: coefficients of a shorter sub-step). Returns
         ``(state, lu, n_iter, z, qh, vh, R_hist, history)``."""
         coef = self.step_coef if coef is None else coef
-        qh, vh = self.predict(st, coef.h)
+        qh, vh = self.predict(st, coef)
         R_hist = self.history(st, coef, ta=ta_old)
         z0 = np.concatenate([st.a, st.lam / self.scale])
         z, lu, it, hist = self.newton(z0, qh, vh, t1, coef, R_hist, step, ta=ta_new)
         a = z[: self.n_dof]
-        new = State(t1, qh + coef.bh2 * a, vh + coef.gh * a, a, z[self.n_dof:] * self.scale)
+        q1, v1, g1 = newmark_update(coef, qh, vh, a, st.a, st.g)
+        new = State(t1, q1, v1, a, z[self.n_dof:] * self.scale, g1)
         return new, lu, it, z, qh, vh, R_hist, hist
 
 
@@ -600,8 +655,8 @@ def _print_progress(n, n_steps, t):
 def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float = 0.8,
              tol: float = 1e-10, max_iter: int = 12, stabilization: float = 0.5,
              stabilization_damping: float = 1.0, constraint_form: str = "paper",
-             progress: bool | Callable = False, observer: Callable | None = None,
-             max_halvings: int = 0):
+             scheme: str = "arnold-bruls", progress: bool | Callable = False,
+             observer: Callable | None = None, max_halvings: int = 0, q0=None, v0=None):
     """Simulate ``model`` from 0 to ``t_end`` with the generalized-alpha method.
 
     Parameters
@@ -620,8 +675,16 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
         ``omega h`` of the Baumgarte term (0 switches it off).
     stabilization_damping : float
         Damping ratio ``xi`` of the Baumgarte term.
+    scheme : {"arnold-bruls", "paper"}
+        Generalized-alpha form (:func:`step_coefficients`): ``"arnold-bruls"`` is second order
+        for every ``rho_inf``; ``"paper"`` is eq. 25–26 of the paper as printed (first order for
+        ``rho_inf < 1`` on nonlinear systems; identical at ``rho_inf = 1``).
     constraint_form : {"paper", "endpoint"}
-        Weighting of the acceleration constraint rows (module docstring).
+        With ``scheme="paper"``: weighting of the acceleration constraint rows (module
+        docstring).
+    q0, v0 : (n_dof,), optional
+        Start from these coordinates/velocities instead of the model's initial state (they
+        must satisfy the constraints, e.g. a static solution: ``ml.static(m).q[-1]``).
     progress : bool or callable
         Print a progress bar, or call ``progress(step, n_steps, t)``.
     observer : callable, optional
@@ -644,9 +707,14 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
     system = model if isinstance(model, System) else compile_model(model)
     settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
                         stabilization=stabilization, stabilization_damping=stabilization_damping,
-                        constraint_form=constraint_form)
+                        constraint_form=constraint_form, scheme=scheme)
+    for name, x in (("q0", q0), ("v0", v0)):
+        if x is not None and (np.shape(x) != (system.n_dof,) or not np.all(np.isfinite(x))):
+            raise ModelError(f"{name} must be a finite array of shape ({system.n_dof},), got "
+                             f"shape {np.shape(x)}")
     return integrate(system, settings, observer=observer, progress=progress,
-                     max_halvings=max_halvings)
+                     max_halvings=max_halvings, q0=None if q0 is None else np.asarray(q0),
+                     v0=None if v0 is None else np.asarray(v0))
 
 
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
@@ -695,7 +763,7 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
                         max_iter=max_iter, stabilization=0.0)
     stp = Stepper(system, settings, scale=1.0)
     stp.b0, stp.b1 = 1.0, 0.0
-    coef = StepCoefficients(1.0, 1.0, 0.0, (0.0, 1.0, 1.0, 0.0, 1.0), None)
+    coef = StepCoefficients(1.0, (0.0, 1.0, 1.0, 0.0, 1.0), None, 1.0, 0.0)
     n_dof = system.n_dof
     L = system.length_scale
     dt = system.dtype

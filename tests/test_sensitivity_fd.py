@@ -128,4 +128,12 @@ def test_small_variables_converge_at_their_order(method):
     steps, order, band = CASES.get(method, (DIRECT_FD_STEPS, 1.0, 0.1))
     errors = column_errors(method, steps, p0, variables, ref)
     for v, e in errors.items():
-        assert abs(slope(steps, e) - order) < band, (method, v, e)
+        if method == "direct-fd":
+            # The step residual of the default (Arnold-Bruls) scheme is linear in rho and in
+            # a point mass (inertia terms at t_{n+1} only), so the forward-difference
+            # pseudo-load has no truncation error in them: measured 1.5e-9..3.6e-8 relative at
+            # steps 3e-4..3e-5, i.e. round-off. Bound: the first-order estimate 100 h plus a
+            # round-off floor of 1e-6 (eps / h = 7e-12 / 3e-5 times the response scale).
+            assert np.all(np.asarray(e) < 100 * np.asarray(steps) + 1e-6), (v, e)
+        else:
+            assert abs(slope(steps, e) - order) < band, (method, v, e)
