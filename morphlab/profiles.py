@@ -11,6 +11,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from .errors import ModelError
 
 
@@ -29,6 +31,16 @@ class Profile:
     def __call__(self, t: float):
         return self.value(t)
 
+    def table(self, times):
+        """``(f, f', f'')`` at every time of ``times`` (arrays); profiles override this with
+        a vectorized version, the default loops over the times."""
+        n = len(times)
+        out = [np.empty(n, dtype=complex) for _ in range(3)]
+        for k, t in enumerate(times):
+            t = float(t)
+            out[0][k], out[1][k], out[2][k] = self.value(t), self.d1(t), self.d2(t)
+        return tuple(o if np.any(o.imag) else o.real for o in out)
+
 
 @dataclass(frozen=True)
 class Constant(Profile):
@@ -44,6 +56,10 @@ class Constant(Profile):
 
     def d2(self, t):
         return 0.0 * self.level
+
+    def table(self, times):
+        one = np.ones(len(times))
+        return one * self.level, one * 0.0 * self.level, one * 0.0 * self.level
 
 
 def _check_interval(t0, t1, name):
@@ -78,6 +94,12 @@ class Ramp(Profile):
     def d2(self, t):
         return 0.0
 
+    def table(self, times):
+        t = np.asarray(times, dtype=float)
+        inside = (t > self.t0) & (t < self.t1)
+        return (np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0),
+                np.where(inside, 1.0 / (self.t1 - self.t0), 0.0), np.zeros_like(t))
+
 
 @dataclass(frozen=True)
 class SmoothStep(Profile):
@@ -92,6 +114,12 @@ class SmoothStep(Profile):
 
     def _x(self, t):
         return min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
+
+    def table(self, times):
+        x = np.clip((np.asarray(times, dtype=float) - self.t0) / (self.t1 - self.t0), 0.0, 1.0)
+        T = self.t1 - self.t0
+        return (x**3 * (10.0 - 15.0 * x + 6.0 * x * x), 30.0 * x * x * (1.0 - x) ** 2 / T,
+                60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / T**2)
 
     def value(self, t):
         x = self._x(t)

@@ -520,13 +520,44 @@ class _PermutedLU:
         return x
 
 
-def time_table(system: System, times: np.ndarray, dtype=None) -> tuple:
+def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
+               ) -> tuple:
     """Time-dependent data at every time of ``times``: ``(C, CD, CDD, F, T)`` with a leading
-    axis ``len(times)`` (profiles evaluated once per run, not inside the Newton loop)."""
+    axis ``len(times)`` — profiles are evaluated once per run (vectorized where the profile
+    allows), not inside the Newton loop. ``cache`` shares profile tables between systems with
+    equal profiles (the perturbed designs of a sensitivity run)."""
     dt = system.dtype if dtype is None else np.dtype(dtype)
-    rows = [system.time_arrays(float(t)) for t in times]
-    return tuple(np.ascontiguousarray(np.stack([r[k] for r in rows]), dtype=dt)
-                 for k in range(5))
+    times = np.asarray(times, dtype=float)
+    cache = {} if cache is None else cache
+
+    def tab(prof):
+        try:
+            key = (prof, times.size, float(times[0]), float(times[-1]))
+            hit = cache.get(key)
+        except TypeError:  # unhashable profile
+            key, hit = None, None
+        if hit is None:
+            hit = prof.table(times)
+            if key is not None:
+                cache[key] = hit
+        return hit
+
+    n_t = times.size
+    C = np.repeat(system.con_c0[None, :].astype(dt), n_t, axis=0)
+    CD = np.zeros_like(C)
+    CDD = np.zeros_like(C)
+    for row, prof in system.con_drive:
+        f, f1, f2 = tab(prof)
+        C[:, row] += f
+        CD[:, row] = f1
+        CDD[:, row] = f2
+    F = np.repeat(system.load_F0[None].astype(dt), n_t, axis=0)
+    for i, prof in enumerate(system.load_prof):
+        F[:, i, :] *= tab(prof)[0][:, None]
+    T = np.repeat(system.torque_T0[None].astype(dt), n_t, axis=0)
+    for i, prof in enumerate(system.torque_prof):
+        T[:, i] *= tab(prof)[0]
+    return tuple(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T))
 
 
 def table_at(table: tuple, k: int) -> tuple:
