@@ -1,0 +1,368 @@
+"""Benchmark suite: ``python -m morphlab.bench [--quick] [--out FILE] [--cases ...]``.
+
+Every figure is a median over repeated runs in one process after a warm-up run, reported
+with min and max, and every ratio is formed from figures of the same run (the machine is
+shared and noisy). Cases:
+
+``morphing``   the leading edge on its defaults: primal, direct (complex-step pseudo-loads),
+               direct-fd (the paper's forward-difference pseudo-loads), finite differences with
+               n_x + 1 primal runs; the ratios (the paper's Table 2).
+``startup``    import time, and fresh-process time to the first morphing result with an empty
+               (cold) and a filled (warm) Numba cache.
+``elements``   the skin meshed with 30 ... 3000 elements: time per step of primal and direct,
+               Newton iterations per step, peak memory (fresh process each), fitted exponent.
+``variables``  1, 5, 20, 50 design variables (skin thickness per group of elements):
+               direct / primal against n_x, beside the finite-difference cost n_x + 1.
+``profile``    where the time of the morphing direct run goes (cProfile, grouped).
+``exudyn``     the same flexible pendulum in Exudyn (optional extra ``bench``), if installed.
+
+Results go to a JSON file and a text table (``BENCHMARKS.md`` holds the latest).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import os
+import platform
+import pstats
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+
+import numpy as np
+
+
+def _stats(times: list[float]) -> dict:
+    return {"median": statistics.median(times), "min": min(times), "max": max(times),
+            "runs": len(times)}
+
+
+def _timeit(fn, repeats: int) -> dict:
+    fn()  # warm-up (compilation, caches)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return _stats(times)
+
+
+def _morphing():
+    from . import morphing
+
+    return morphing
+
+
+# ---------------------------------------------------------------------------------------------
+def case_morphing(repeats: int, quick: bool) -> dict:
+    """Table 2 on this machine."""
+    import morphlab as ml
+
+    mo = _morphing()
+    settings = dict(mo.SETTINGS)
+    p0 = dict(mo.DEFAULTS)
+    resp = mo.RESPONSES
+    system = ml.compile_model(mo.build(p0))
+    out = {"n_x": len(p0), "settings": settings}
+    out["primal"] = _timeit(lambda: ml.simulate(system, **settings), repeats)
+    out["primal_from_build"] = _timeit(lambda: ml.simulate(mo.build(p0), **settings), repeats)
+    for method, key in (("direct", "direct"), ("direct-fd", "direct_fd"),
+                        ("forward-difference", "finite_difference")):
+        out[key] = _timeit(lambda m=method: ml.sensitivities(mo.build, p0, resp, method=m,
+                                                             **settings),
+                           max(1, repeats if method != "forward-difference" else repeats // 2))
+    prim = out["primal"]["median"]
+    out["ratios"] = {
+        "direct_over_primal": out["direct"]["median"] / prim,
+        "direct_fd_over_primal": out["direct_fd"]["median"] / prim,
+        "finite_difference_over_primal": out["finite_difference"]["median"] / prim,
+        "finite_difference_over_direct": (out["finite_difference"]["median"]
+                                          / out["direct"]["median"]),
+    }
+    res = ml.simulate(system, **settings)
+    out["steps"] = int(res.n_t - 1)
+    out["newton_iterations_per_step"] = float(np.mean(res.newton_iterations[1:]))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+_FIRST_RESULT = (
+    "import time; t0 = time.perf_counter(); import morphlab as ml; "
+    "from morphlab import morphing as mo; "
+    "r = ml.simulate(mo.build(mo.DEFAULTS), **mo.SETTINGS); "
+    "print(time.perf_counter() - t0)"
+)
+
+
+def _fresh(code: str, env: dict | None = None) -> float:
+    """Wall time of ``python -c code`` in a fresh process (seconds, whole process)."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def case_startup(repeats: int, quick: bool) -> dict:
+    out = {}
+    out["import"] = _stats([_fresh("import morphlab") for _ in range(repeats)])
+    cold = []
+    for _ in range(1 if quick else 2):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            cold.append(_fresh(_FIRST_RESULT, env))
+    out["cold_first_result"] = _stats(cold)
+    _fresh(_FIRST_RESULT)  # fill the default cache
+    out["warm_first_result"] = _stats([_fresh(_FIRST_RESULT) for _ in range(repeats)])
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+_SIZE_RUN = """
+import json, resource, sys, time
+import numpy as np
+import morphlab as ml
+from morphlab import morphing as mo
+n_el, n_steps, repeats = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+settings = dict(mo.SETTINGS)
+settings["t_end"] = settings["dt"] * n_steps
+p0 = dict(mo.DEFAULTS)
+build = lambda p: mo.build(p, n_elements=n_el)
+system = ml.compile_model(build(p0))
+def med(fn):
+    fn(); ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter(); fn(); ts.append(time.perf_counter() - t0)
+    return float(np.median(ts)), float(min(ts)), float(max(ts))
+res = ml.simulate(system, **settings)
+primal = med(lambda: ml.simulate(system, **settings))
+direct = med(lambda: ml.sensitivities(build, p0, mo.RESPONSES, method="direct", **settings))
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+print(json.dumps({"n_elements": n_el, "n_dof": system.n_dof, "steps": n_steps,
+                  "newton_iterations_per_step": float(np.mean(res.newton_iterations[1:])),
+                  "primal_per_step": [x / n_steps for x in primal],
+                  "direct_per_step": [x / n_steps for x in direct],
+                  "peak_memory_MiB": peak}))
+"""
+
+
+def case_elements(repeats: int, quick: bool) -> dict:
+    sizes = [30, 100, 300] if quick else [30, 100, 300, 1000, 3000]
+    n_steps = 20 if quick else 50
+    rows = []
+    for n_el in sizes:
+        rep = repeats if n_el <= 300 else max(1, repeats // 2)
+        proc = subprocess.run([sys.executable, "-c", _SIZE_RUN, str(n_el), str(n_steps),
+                               str(rep)], check=True, capture_output=True, text=True)
+        rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    ne = np.array([r["n_elements"] for r in rows], dtype=float)
+    fit = {}
+    for key in ("primal_per_step", "direct_per_step"):
+        t = np.array([r[key][0] for r in rows])
+        big = ne >= 100
+        fit[key] = float(np.polyfit(np.log(ne[big]), np.log(t[big]), 1)[0]) if big.sum() >= 2 \
+            else float("nan")
+    return {"rows": rows, "fitted_exponent": fit}
+
+
+# ---------------------------------------------------------------------------------------------
+def case_variables(repeats: int, quick: bool) -> dict:
+    """Direct / primal against the number of design variables (thickness per element group)."""
+    import morphlab as ml
+
+    mo = _morphing()
+    settings = dict(mo.SETTINGS)
+    p_base = dict(mo.DEFAULTS)
+    n_el = mo.N_ELEMENTS
+    rows = []
+    for n_x in ([1, 5, 20] if quick else [1, 5, 20, 50]):
+        groups = np.array_split(np.arange(n_el), min(n_x, n_el))
+
+        def build(p, groups=groups):
+            t = np.empty(n_el, dtype=np.result_type(*[type(p[f"t{k}"]) for k in
+                                                       range(len(groups))], float))
+            for k, g in enumerate(groups):
+                t[g] = p[f"t{k}"]
+            q = dict(p_base)
+            q["t_w"] = t
+            return mo.build(q)
+
+        p0 = {f"t{k}": p_base["t_w"] for k in range(len(groups))}
+        if n_x > n_el:
+            continue
+        system = ml.compile_model(build(p0))
+        resp = {"ks_max_stress": mo.RESPONSES["ks_max_stress"]}
+        prim = _timeit(lambda s=system: ml.simulate(s, **settings), repeats)
+        dire = _timeit(lambda b=build, p=p0, r=resp: ml.sensitivities(b, p, r, method="direct",
+                                                              **settings), repeats)
+        rows.append({"n_x": n_x, "primal": prim, "direct": dire,
+                     "direct_over_primal": dire["median"] / prim["median"],
+                     "finite_difference_over_primal_estimate": n_x + 1})
+    return {"rows": rows}
+
+
+# ---------------------------------------------------------------------------------------------
+_GROUPS = (
+    ("assembly kernels", ("add_residual", "fill_matrix")),
+    ("pseudo-load kernel", ("pseudo_residuals",)),
+    ("factorization", ("gstrf",)),
+    ("solves", ("'solve' of 'SuperLU'",)),
+    ("sparse matrix construction", ("_compressed.py", "_csc.py", "_sputils.py", "_base.py")),
+    ("compile (model -> arrays)", ("compile.py",)),
+    ("time tables", ("time_table", "profiles.py")),
+)
+
+
+def case_profile(repeats: int, quick: bool) -> dict:
+    import morphlab as ml
+
+    mo = _morphing()
+    settings = dict(mo.SETTINGS)
+    p0 = dict(mo.DEFAULTS)
+    ml.sensitivities(mo.build, p0, mo.RESPONSES, method="direct", **settings)
+    prof = cProfile.Profile()
+    prof.enable()
+    ml.sensitivities(mo.build, p0, mo.RESPONSES, method="direct", **settings)
+    prof.disable()
+    st = pstats.Stats(prof)
+    total = sum(v[2] for v in st.stats.values())  # tottime
+    out = {name: 0.0 for name, _ in _GROUPS}
+    other = 0.0
+    for (file, _line, func), v in st.stats.items():
+        label = f"{file}:{func}"
+        for name, keys in _GROUPS:
+            if any(k in label for k in keys):
+                out[name] += v[2]
+                break
+        else:
+            other += v[2]
+    out["python and numpy (other)"] = other
+    return {"total_s": total, "seconds": out,
+            "fractions": {k: v / total for k, v in out.items()}}
+
+
+# ---------------------------------------------------------------------------------------------
+def case_exudyn(repeats: int, quick: bool) -> dict:
+    try:
+        import exudyn  # noqa: F401
+    except ImportError:
+        return {"skipped": "exudyn is not installed (pip install -e '.[bench]')"}
+    from . import _bench_exudyn
+
+    return _bench_exudyn.run(repeats, quick)
+
+
+CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
+         "variables": case_variables, "profile": case_profile, "exudyn": case_exudyn}
+
+
+def table(results: dict) -> str:
+    """The results as Markdown tables."""
+    lines = []
+    m = results["cases"].get("morphing")
+    if m:
+        lines += ["### Morphing leading edge (Table 2 on this machine)", "",
+                  "| run | median [s] | min | max | / primal |", "|---|---|---|---|---|"]
+        prim = m["primal"]["median"]
+        for key, label in (("primal", "one primal run"),
+                           ("direct", "direct differentiation, 5 variables"),
+                           ("direct_fd", "direct with FD pseudo-loads (paper's variant)"),
+                           ("finite_difference", "finite differences (n_x + 1 runs)")):
+            s = m[key]
+            lines.append(f"| {label} | {s['median']:.4f} | {s['min']:.4f} | {s['max']:.4f} | "
+                         f"{s['median'] / prim:.2f} |")
+        lines += ["", f"finite differences / direct = "
+                      f"{m['ratios']['finite_difference_over_direct']:.2f}; "
+                      f"{m['steps']} steps, {m['newton_iterations_per_step']:.2f} Newton "
+                      "iterations per step.", ""]
+    s = results["cases"].get("startup")
+    if s:
+        lines += ["### Start-up", "", "| measure | median [s] |", "|---|---|",
+                  f"| import morphlab | {s['import']['median']:.3f} |",
+                  f"| fresh process to first result, empty Numba cache | "
+                  f"{s['cold_first_result']['median']:.2f} |",
+                  f"| fresh process to first result, filled cache | "
+                  f"{s['warm_first_result']['median']:.2f} |", ""]
+    e = results["cases"].get("elements")
+    if e:
+        lines += ["### Growth with elements", "",
+                  "| elements | DOFs | primal per step [ms] | direct per step [ms] | "
+                  "Newton it./step | peak memory [MiB] |", "|---|---|---|---|---|---|"]
+        for r in e["rows"]:
+            lines.append(f"| {r['n_elements']} | {r['n_dof']} | "
+                         f"{1e3 * r['primal_per_step'][0]:.3f} | "
+                         f"{1e3 * r['direct_per_step'][0]:.3f} | "
+                         f"{r['newton_iterations_per_step']:.2f} | {r['peak_memory_MiB']:.0f} |")
+        f = e["fitted_exponent"]
+        lines += ["", f"fitted exponent (>= 100 elements): primal {f['primal_per_step']:.2f}, "
+                      f"direct {f['direct_per_step']:.2f}", ""]
+    v = results["cases"].get("variables")
+    if v:
+        lines += ["### Growth with design variables", "",
+                  "| n_x | primal [s] | direct [s] | direct / primal | FD / primal (n_x+1) |",
+                  "|---|---|---|---|---|"]
+        for r in v["rows"]:
+            lines.append(f"| {r['n_x']} | {r['primal']['median']:.4f} | "
+                         f"{r['direct']['median']:.4f} | {r['direct_over_primal']:.2f} | "
+                         f"{r['finite_difference_over_primal_estimate']} |")
+        lines.append("")
+    p = results["cases"].get("profile")
+    if p:
+        lines += ["### Where the time goes (direct run, cProfile)", "",
+                  "| part | seconds | share |", "|---|---|---|"]
+        for k, sec in sorted(p["seconds"].items(), key=lambda kv: -kv[1]):
+            lines.append(f"| {k} | {sec:.4f} | {100 * p['fractions'][k]:.1f} % |")
+        lines.append("")
+    x = results["cases"].get("exudyn")
+    if x:
+        lines += ["### Exudyn", "", f"{json.dumps(x)}", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m morphlab.bench", description=__doc__.split(
+        "\n")[0])
+    ap.add_argument("--quick", action="store_true", help="smaller sizes and fewer repeats")
+    ap.add_argument("--repeats", type=int, default=None, help="runs per figure (default 7; "
+                    "quick: 3)")
+    ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of "
+                    + ", ".join(CASES))
+    ap.add_argument("--out", default="benchmarks.json", help="JSON output file")
+    args = ap.parse_args(argv)
+    repeats = args.repeats or (3 if args.quick else 7)
+    chosen = [c.strip() for c in args.cases.split(",") if c.strip()]
+    unknown = [c for c in chosen if c not in CASES]
+    if unknown:
+        print(f"morphlab.bench: unknown cases {unknown}; choose from {list(CASES)}",
+              file=sys.stderr)
+        return 2
+    from .warmup import warmup
+
+    warmup()
+    import morphlab
+
+    results = {
+        "command": "python -m morphlab.bench " + " ".join(argv if argv is not None
+                                                          else sys.argv[1:]),
+        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "machine": {"platform": platform.platform(), "processor": platform.processor(),
+                    "cpus": os.cpu_count(), "python": platform.python_version()},
+        "versions": {"morphlab": morphlab.__version__, "numpy": np.__version__},
+        "repeats": repeats,
+        "cases": {},
+    }
+    for c in chosen:
+        t0 = time.perf_counter()
+        results["cases"][c] = CASES[c](repeats, args.quick)
+        print(f"[{c}: {time.perf_counter() - t0:.1f} s]", file=sys.stderr)
+    with open(args.out, "w", encoding="utf-8") as fh:
+        json.dump(results, fh, indent=2)
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
