@@ -34,8 +34,10 @@ from numba import njit
 
 
 @njit(cache=True)
-def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex):
+def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, full):
     """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
+
+    ``full=False`` (the residual) skips ``Mv`` and ``Sa``, which only the Jacobian needs.
 
     Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv`` (each (n_flex + 1,)). Element DOFs
     removed by a reference condition (``elem_fdof == -1``) read and write the extra slot
@@ -83,13 +85,15 @@ def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
             kv = 0.0 * ql[0]
             for j in range(6):
                 mq += Me[i, j] * ql[j]
-                mv += Me[i, j] * vl[j]
                 ma += Me[i, j] * al[j]
                 sq += Se[i, j] * ql[j]
                 sv += Se[i, j] * vl[j]
-                sa += Se[i, j] * al[j]
                 kq += Ke[i, j] * ql[j]
                 kv += Ke[i, j] * vl[j]
+            if full:
+                for j in range(6):
+                    mv += Me[i, j] * vl[j]
+                    sa += Se[i, j] * al[j]
             k = idx[i]
             Mq[k] += mq
             Mv[k] += mv
@@ -123,7 +127,7 @@ def body_residual(
     """
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
-        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
+        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, False
     )
     gx = gravity[0]
     gy = gravity[1]
@@ -234,7 +238,7 @@ def body_jacobian(
     """
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
-        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
+        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, True
     )
     gx = gravity[0]
     gy = gravity[1]

@@ -134,8 +134,11 @@ class Result:
         sl = info.elements
         ed = self.system.elem_dofs[sl]
         B = self.system.elem_B[sl]
-        d = np.where(ed[None] >= 0, self.q[:, np.maximum(ed, 0)], 0.0)
-        return np.einsum("eijk,tek->teij", B, d)
+        d = np.where(ed[None] >= 0, self.q[:, np.maximum(ed, 0)], 0.0)  # (n_t, n_elem, 6)
+        n_e = B.shape[0]
+        # batched matmul per element: (n_elem, 4, 6) @ (n_elem, 6, n_t)
+        s = np.matmul(B.reshape(n_e, 4, 6), d.transpose(1, 2, 0))
+        return s.reshape(n_e, 2, 2, -1).transpose(3, 0, 1, 2)
 
     # ---- energy
     @property
