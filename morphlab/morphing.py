@@ -1,0 +1,655 @@
+"""The morphing leading edge of the paper (§4): parametric model, settings, responses, design.
+
+Model (DESIGN.md §7, one reading of the paper's text; its figure is not available)
+-----------------------------------------------------------------------------------
+Body 1, ``"skin"``: 30 Euler–Bernoulli elements (31 nodes) at equal arc length on the
+high-speed airfoil of :mod:`morphlab.airfoil`, from F (node 0, upper surface at the front spar,
+x = 137.5 mm) round the nose to G (node 30, lower surface at the spar); wall ``t_w``, span
+1000 mm, aluminium. F is clamped (x, y, rotation); G keeps y and rotation and slides in x.
+Bodies 2–5 are rigid aluminium bars (section :data:`LINK_SECTION_MM2`; mass ``rho A L``,
+inertia ``m L²/12`` about the bar's middle):
+
+* ``"crank"`` (body 2) from the ground pivot A to B, driven by the torque ``M_t`` (SmoothStep
+  0 -> 1 over :data:`T_RAMP_S`, then held);
+* ``"arm"`` (body 4) from B to D, welded to the crank at B: crank and arm are one bell crank;
+* ``"link_C"`` (body 3) from B to the upper skin node C = node :data:`C_NODE`;
+* ``"link_E"`` (body 5) from D to the lower skin node E = node :data:`E_NODE`.
+
+Joints: revolute A (ground–crank), revolute B (crank–link_C) and weld B (crank–arm), revolute
+C (link_C–skin), revolute D (arm–link_E), revolute E (link_E–skin). Moving A (design variables
+``x_A``, ``y_A``) changes the crank only (it spans A -> B, B stays).
+
+Mechanism (how the numbers were found: :func:`design_report` reproduces them)
+-------------------------------------------------------------------------------
+The skin's frame is held by the clamp at F, so in linear FFRF the skin is a *linear* elastic
+structure: its morphed shape is ``X + G f`` for the two link forces ``f`` at C and E (G: the
+skin's compliance, :func:`skin_compliance`). The design therefore runs backwards from the shape:
+
+1. :func:`fit_link_forces`: for each pair of skin nodes (C upper, E lower) the two force
+   vectors that best reproduce the target displacements (linear least squares, with a tiny
+   ridge term against the useless axial-stretching solutions). Every pair C = 3..7,
+   E = 22..24 reaches an RMS error of about 0.10 mm and ~82 MPa; one force alone (at node 19)
+   would give 0.13 mm.
+2. :func:`inverse_mechanism`: the links are two-force members, so in the morphed state each
+   lies along its force. The crank is in equilibrium when the moment of the two skin forces
+   about A equals ``M_t``, which puts A on a line; for a chosen ``x_A`` on that line and a
+   crank rotation ``delta``, B and D follow from rotating the morphed crank back by ``delta``
+   under the condition that each link keeps its length (one linear equation per link). The
+   simulated equilibrium at ``M_t`` is then exactly the fitted shape.
+3. Not every such mechanism reaches that state under a growing torque: the torque–angle path
+   (:func:`torque_angle_curve`, static with the crank angle prescribed) must rise
+   monotonically, or the crank snaps through. A scan (pairs C = 3..7, E = 21..24; x_A = 80 ...
+   125 mm in 1 mm steps; ``delta`` = 0.4 ... 1.2 rad in steps of 0.05; 140 s) kept the designs
+   whose path rises with at least 40 % of its mean slope up to the design angle and keeps
+   rising to 1.3 times it, with the pivots A, B, D at least 5 mm inside the skin at all
+   times, no link crossing the skin, crank arms >= 8 mm and links >= 20 mm (10 of them), and
+   took the one that needs the largest torque to turn 30 % beyond its design angle (1.83
+   ``M_t``: the shape moves least under an overload). That is C = node 4, E = node 22,
+   x_A = 102 mm, delta = 0.7 rad; the coordinates below are its output rounded to 0.01 mm,
+   which moves the morphed nodes by up to 0.003 mm (the crank ends at 0.698 rad).
+
+The torque is small for the forces the skin needs (1.12 kN at C, 2.23 kN at E): the crank arms
+are short (|AB| = 8.4 mm, |AD| = 8.9 mm; links 44.8 and 50.6 mm) and the crank turns by
+0.7 rad. That follows from the work balance: the torque's work ``integral M d(delta) <=
+M_t delta`` equals the strain energy (3.8 J), so ``delta >= 0.38 rad`` and the crank radius is
+about the skin's displacement at the links (~4 mm) over ``delta``.
+
+Numbers (defaults, :data:`SETTINGS`; measured on 2 cores)
+---------------------------------------------------------
+* target droop 6 mm (:data:`morphlab.airfoil.DEFAULT_DROOP_MM`); G slides 4.65 mm aft
+  (target: 4.59 mm);
+* KS max stress 83.24 MPa (exact max 82.77 MPa, at E, at the end of the ramp and through the
+  hold); RMS shape error 0.1012 mm, max 0.2447 mm (at the nose, node 15); paper: 149.96 MPa,
+  0.6348 mm, 1.185 mm. Yield of 6061-T6: >= 240 MPa;
+* largest node rotation 0.101 rad (linear FFRF: spurious stretch ~ phi²/2 <= 0.5 % where the
+  skin turns most); the simulated skin polygon is 0.535 mm (0.18 %) longer than the undeformed
+  one, while the target keeps its length to 0.0002 mm: the fitted forces absorb most of it,
+  the rest is inside the shape error;
+* final state vs :func:`morphlab.static` at ``t_end``: nodes agree to 2e-12 mm, stresses to
+  2e-10 MPa; energy balance (torque work = strain energy + damping loss) closes to 7e-5 of the
+  work;
+* halving ``dt``: e_rms and e_max change by < 1e-11 relative, KS by +8.3e-4 (ln(2)/rho_KS from
+  twice as many values near the max in the hold);
+* mesh: 60 and 120 elements (C and E at the same material points) give KS 83.18 / 83.17 MPa
+  and RMS error 0.1018 / 0.1022 mm: the design, fitted on 30 elements, holds;
+* one :func:`morphlab.simulate` of the defaults: 300 steps, 1.8 Newton iterations per step,
+  0.16 s warm (build included).
+
+Units: mm, t, s, N, N·mm, MPa.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from . import airfoil
+from .errors import ModelError, SolverError
+from .model import Model
+from .profiles import Custom, SmoothStep
+from .responses import distance, ks_abs, max_by_real, rms
+from .solver import static
+
+__all__ = [
+    "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
+    "LINK_SECTION_MM2", "DESIGN_DELTA", "DAMPING_S", "T_RAMP_S", "RHO_KS", "STATIC_STEPS",
+    "DEFAULTS", "GEOMETRY", "SETTINGS", "build", "undeformed", "target", "shape_errors",
+    "rms_error", "max_error", "ks_max_stress", "RESPONSES", "mechanism_clearance",
+    "skin_compliance", "fit_link_forces", "inverse_mechanism", "torque_angle_curve",
+    "design_report", "study", "PAPER", "UNITS",
+]
+
+#: Span of the planar wing section [mm] (the skin's out-of-plane width).
+SPAN_MM = 1000.0
+#: Density of aluminium [t/mm³].
+RHO_AL = 2.7e-9
+#: Young's modulus of aluminium [MPa].
+E_AL = 70000.0
+#: Yield (0.2 % proof) stress of 6061-T6, the minimum of EN 755-2 for extrusions [MPa].
+YIELD_MPA = 240.0
+#: Skin elements of the paper's mesh.
+N_ELEMENTS = 30
+#: Nose droop of the low-speed target [mm].
+DROOP_MM = airfoil.DEFAULT_DROOP_MM
+#: Skin node (of the 30-element mesh) where link_C acts: upper surface, x = 99.2 mm.
+C_NODE = 4
+#: Skin node (of the 30-element mesh) where link_E acts: lower surface, x = 60.0 mm.
+E_NODE = 22
+#: Cross-section of the rigid links, a 10 mm x 10 mm aluminium bar [mm²].
+LINK_SECTION_MM2 = 100.0
+#: Stiffness-proportional damping coefficient of the skin [s]: D = beta K. The first mode of
+#: the mechanism has 425 rad/s undeformed, 300 rad/s at its softest (crank angle ~0.3 rad) and
+#: 973 rad/s morphed, so zeta = beta omega / 2 = 0.15 ... 0.49; higher modes are overdamped and
+#: relax within ~beta. With the 0.05 s hold the morphed state is settled to round-off. A
+#: stand-in for the quasi-static actuation, above the structural damping of aluminium: it
+#: shapes only the transient, not the morphed state the responses are read from.
+DAMPING_S = 1.0e-3
+#: Duration of the torque's SmoothStep ramp [s], about five periods of the mechanism's softest
+#: first mode (21 ms), so that the skin follows the torque nearly quasi-statically.
+T_RAMP_S = 0.1
+#: KS aggregation parameter [1/MPa]. The stress rises to its maximum at the end of the ramp
+#: and stays there over the ~100 steps of the hold, so ~10² values sit near the max and the KS
+#: value exceeds it by ~ln(10²)/rho: 0.46 MPa here (0.6 %). rho = 1/MPa would overshoot by
+#: ~5 MPa. (Halving dt doubles those values and adds ln(2)/rho = 0.07 MPa.)
+RHO_KS = 10.0
+#: Crank rotation of the design from the undeformed to the morphed state [rad].
+DESIGN_DELTA = 0.7
+#: Continuation steps of the static reference solution (half of them at the full torque).
+STATIC_STEPS = 20
+
+#: Design variables of the paper's sensitivity study (Table 1): skin wall thickness [mm],
+#: actuation torque [N·mm], pivot A [mm], Young's modulus of the skin [MPa].
+DEFAULTS: dict[str, float] = {
+    "t_w": 2.0,
+    "M_t": 1.0e4,
+    "x_A": 102.0,
+    "y_A": -0.25,
+    "E": E_AL,
+}
+#: Further geometry that ``build`` accepts in ``p`` (not in the paper's study): the bell-crank
+#: points B and D [mm].
+GEOMETRY: dict[str, float] = {
+    "x_B": 99.29,
+    "y_B": -8.25,
+    "x_D": 108.85,
+    "y_D": -5.88,
+}
+#: Keyword arguments of :func:`morphlab.simulate` for the study: 300 steps; the torque ramps up
+#: over 0.1 s and holds for 0.05 s. dt = 0.5 ms resolves the first mode (>= 13 steps per
+#: period); the higher, overdamped modes are damped further by rho_inf = 0.8.
+SETTINGS: dict = {"t_end": 0.15, "dt": 5.0e-4, "rho_inf": 0.8}
+
+
+def _check_elements(n_elements: int) -> int:
+    if not (isinstance(n_elements, (int, np.integer)) and n_elements >= 8):
+        raise ModelError(f"n_elements must be an integer >= 8, got {n_elements!r}")
+    return int(n_elements)
+
+
+def _attachment(node: int, n_elements: int) -> int:
+    """Node of an n-element skin at the arc-length position of ``node`` of the 30-element
+    mesh: the same material point when n is a multiple of 30, else the nearest node."""
+    return int(round(node * n_elements / N_ELEMENTS))
+
+
+@lru_cache(maxsize=8)
+def _nodes(n_elements: int, droop: float) -> tuple[np.ndarray, np.ndarray]:
+    d = airfoil.target_nodes(droop=droop, n_nodes=n_elements + 1)
+    und, tgt = d["undeformed"], d["target"]
+    und.setflags(write=False)
+    tgt.setflags(write=False)
+    return und, tgt
+
+
+def undeformed(n_elements: int = N_ELEMENTS) -> np.ndarray:
+    """Undeformed skin nodes, F first, G last, (n_elements + 1, 2) [mm]."""
+    return _nodes(_check_elements(n_elements), DROOP_MM)[0].copy()
+
+
+def target(p: dict | None = None, n_elements: int = N_ELEMENTS) -> np.ndarray:
+    """Target (drooped) skin nodes, node k the image of undeformed node k, (n + 1, 2) [mm].
+
+    ``p`` is accepted for a uniform signature; the target does not depend on the design
+    variables.
+    """
+    return _nodes(_check_elements(n_elements), DROOP_MM)[1].copy()
+
+
+def _design(p: dict | None) -> dict:
+    q = {**DEFAULTS, **GEOMETRY}
+    if p:
+        unknown = set(p) - set(q)
+        if unknown:
+            raise ModelError(f"unknown design variables {sorted(unknown)}; known: {sorted(q)}")
+        q.update(p)
+    return q
+
+
+def _link(m: Model, P, Q, name: str):
+    """Rigid bar from P to Q: mass rho A L, inertia m L²/12 about its middle (complex-safe)."""
+    dx, dy = Q[0] - P[0], Q[1] - P[1]
+    length = np.sqrt(dx * dx + dy * dy)
+    mass = RHO_AL * LINK_SECTION_MM2 * length
+    return m.add_rigid_body(mass=mass, inertia=mass * length * length / 12.0,
+                            position=((P[0] + Q[0]) / 2.0, (P[1] + Q[1]) / 2.0), name=name)
+
+
+def _assemble(p: dict | None, n_elements: int, drive: bool,
+              nodes: tuple[int, int] = (C_NODE, E_NODE)) -> Model:
+    q = _design(p)
+    n = _check_elements(n_elements)
+    X = _nodes(n, DROOP_MM)[0]
+    m = Model(name="morphing leading edge")
+    skin = m.add_beam(X, E=q["E"], rho=RHO_AL, thickness=q["t_w"], width=SPAN_MM,
+                      damping=DAMPING_S, name="skin")
+    m.add_fix(skin, at=X[0], dofs="xyr", name="F")
+    m.add_fix(skin, at=X[-1], dofs="yr", name="G")
+    A = (q["x_A"], q["y_A"])
+    B = (q["x_B"], q["y_B"])
+    D = (q["x_D"], q["y_D"])
+    C, E = X[_attachment(nodes[0], n)], X[_attachment(nodes[1], n)]
+    crank = _link(m, A, B, "crank")
+    link_c = _link(m, B, C, "link_C")
+    arm = _link(m, B, D, "arm")
+    link_e = _link(m, D, E, "link_E")
+    m.add_revolute(m.ground, crank, at=A, name="A")
+    m.add_revolute(crank, link_c, at=B, name="B")
+    m.add_weld(crank, arm, at=B, name="B_weld")
+    m.add_revolute(link_c, skin, at=C, name="C")
+    m.add_revolute(arm, link_e, at=D, name="D")
+    m.add_revolute(link_e, skin, at=E, name="E")
+    if drive:
+        # crank angle = t (static use only: the derivatives are never evaluated there; zero
+        # keeps the initial velocity check of compile satisfied)
+        m.add_drive(crank, angle=Custom(lambda t: t, lambda t: 0.0, lambda t: 0.0),
+                    name="drive")
+    else:
+        m.add_torque(crank, q["M_t"], profile=SmoothStep(0.0, T_RAMP_S), name="M_t")
+    return m
+
+
+def build(p: dict | None = None, *, n_elements: int = N_ELEMENTS) -> Model:
+    """The morphing leading edge for the design ``p``.
+
+    Parameters
+    ----------
+    p : dict, optional
+        Design variables; missing ones take :data:`DEFAULTS` / :data:`GEOMETRY`. Values may
+        be complex (complex step): geometry, masses and inertias are built with ``+ - * /``
+        and ``np.sqrt`` only. Keys: ``t_w`` [mm], ``M_t`` [N·mm], ``x_A``, ``y_A``, ``x_B``,
+        ``y_B``, ``x_D``, ``y_D`` [mm], ``E`` [MPa].
+    n_elements : int, optional
+        Skin elements (>= 8). For multiples of 30, C and E stay at the same material points;
+        otherwise they move to the nearest node (by up to half an element).
+
+    Returns
+    -------
+    Model
+        Bodies ``skin``, ``crank``, ``link_C``, ``arm``, ``link_E``; joints F, G, A, B,
+        B_weld, C, D, E; torque ``M_t``.
+    """
+    return _assemble(p, n_elements, drive=False)
+
+
+# ---------------------------------------------------------------------------------- responses
+def shape_errors(result) -> np.ndarray:
+    """Distance of every skin node from its target at the final time (paper eq. 41),
+    (n_nodes,) [mm]; complex-safe."""
+    pos = result.node_positions("skin")[-1]
+    return distance(pos, target(n_elements=pos.shape[0] - 1))
+
+
+def rms_error(result):
+    """Root-mean-square shape error at the final time (paper eq. 42) [mm]; complex-safe."""
+    return rms(shape_errors(result))
+
+
+def max_error(result):
+    """Largest node error at the final time [mm]: the exact maximum, the node picked by the
+    real part (its derivative is that node's, exact where the maximiser is unique)."""
+    return max_by_real(shape_errors(result))
+
+
+def ks_max_stress(result, rho_ks: float = RHO_KS):
+    """Kreisselmeier–Steinhauser maximum of the skin stress magnitude (paper eq. 40) [MPa].
+
+    Aggregates ``sigma`` and ``-sigma`` over all elements, both element ends, both fibres and
+    all time steps: ``KS = s* + ln(sum exp(rho (s - s*))) / rho``, ``s*`` the largest real
+    part (shift against overflow). ``rho_ks`` in 1/MPa, see :data:`RHO_KS`.
+    """
+    return ks_abs(result.stress("skin"), rho_ks)
+
+
+#: The study's responses, complex-safe functions of a :class:`morphlab.Result`.
+RESPONSES = {"ks_max_stress": ks_max_stress, "rms_error": rms_error, "max_error": max_error}
+
+
+# ------------------------------------------------------------------------------- geometry checks
+def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Even-odd ray casting: True for points inside the closed polygon ``poly`` (m, 2)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    a, b = poly, np.roll(poly, -1, axis=0)
+    straddle = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (
+            b[None, :, 1] - a[None, :, 1])
+    return np.sum(straddle & (x < xc), axis=1) % 2 == 1
+
+
+def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    ap = points[:, None, :] - a[None]
+    t = np.clip(np.sum(ap * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0.0, 1.0)
+    d = ap - t[..., None] * ab[None]
+    return np.min(np.sqrt(np.sum(d * d, axis=-1)), axis=1)
+
+
+def _crosses(P, Q, a, b) -> np.ndarray:
+    """Whether segment P-Q properly crosses each segment a_i-b_i."""
+    def orient(u, v, w):
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (
+            v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
+
+    d1, d2 = orient(P, Q, a), orient(P, Q, b)
+    d3, d4 = orient(a, b, P), orient(a, b, Q)
+    return (d1 * d2 < 0) & (d3 * d4 < 0)
+
+
+def mechanism_clearance(result, p: dict | None = None, *, tip_fraction: float = 0.1,
+                        nodes: tuple[int, int] = (C_NODE, E_NODE)) -> dict:
+    """How far the mechanism stays inside the skin over a run.
+
+    Parameters
+    ----------
+    result : Result
+        A run of ``build(p)`` (real).
+    p : dict, optional
+        The design the run was built from (default: the defaults).
+    tip_fraction : float
+        Part of each link next to its skin node left out of the link clearance (the link
+        meets the skin there).
+    nodes : (int, int)
+        C and E as nodes of the 30-element mesh.
+
+    Returns
+    -------
+    dict
+        ``"joints"``: smallest signed distance [mm] of A, B, D from the skin contour (closed by
+        the segment G -> F; positive inside) over all time steps; ``"links"``: the same for 20
+        points on each link's remaining length; ``"crossings"``: number of (time step, link,
+        skin element) crossings, the elements next to the link's own node excepted.
+    """
+    q = _design(p)
+    n_nodes = result.node_positions("skin").shape[1]
+    c_node, e_node = (_attachment(k, n_nodes - 1) for k in nodes)
+    skin = np.real(result.node_positions("skin"))
+    A = np.array([np.real(q["x_A"]), np.real(q["y_A"])])
+    B0 = np.array([np.real(q["x_B"]), np.real(q["y_B"])])
+    D0 = np.array([np.real(q["x_D"]), np.real(q["y_D"])])
+    B = np.real(result.point_positions("crank", B0))
+    D = np.real(result.point_positions("arm", D0))
+    s = np.linspace(0.0, 1.0 - tip_fraction, 20)[:, None]
+    joints, links, crossings = np.inf, np.inf, 0
+    for i in range(result.n_t):
+        S = skin[i]
+        for pts, which in ((np.array([A, B[i], D[i]]), "j"),
+                           (B[i] + s * (S[c_node] - B[i]), "l"),
+                           (D[i] + s * (S[e_node] - D[i]), "l")):
+            d = _distance_to_polyline(pts, np.vstack([S, S[:1]]))
+            d = np.where(_inside(pts, S), d, -d)
+            if which == "j":
+                joints = min(joints, float(d.min()))
+            else:
+                links = min(links, float(d.min()))
+        for P, node in ((B[i], c_node), (D[i], e_node)):
+            keep = np.ones(n_nodes - 1, dtype=bool)
+            keep[max(node - 1, 0):node + 1] = False
+            hit = _crosses(P, S[node], S[:-1][keep], S[1:][keep])
+            crossings += int(np.sum(hit))
+    return {"joints": joints, "links": links, "crossings": crossings}
+
+
+# ------------------------------------------------------------------------------------- design
+def _skin_only(nodes, t_w, E) -> Model:
+    m = Model(name="skin")
+    skin = m.add_beam(nodes, E=E, rho=RHO_AL, thickness=t_w, width=SPAN_MM, name="skin")
+    m.add_fix(skin, at=nodes[0], dofs="xyr", name="F")
+    m.add_fix(skin, at=nodes[-1], dofs="yr", name="G")
+    return m
+
+
+def skin_compliance(nodes_index=None, *, t_w: float = 2.0, E: float = E_AL,
+                    n_elements: int = N_ELEMENTS):
+    """Linear response of the skin alone (F clamped, G sliding) to unit nodal forces.
+
+    Parameters
+    ----------
+    nodes_index : sequence of int, optional
+        Skin nodes that carry a force (default: all).
+    t_w, E : float
+        Wall thickness [mm] and Young's modulus [MPa].
+    n_elements : int
+        Skin elements.
+
+    Returns
+    -------
+    G : ndarray, shape (n_nodes, 2, n_loaded, 2)
+        ``G[k, :, j, c]``: displacement of node k [mm] per newton of force in direction c
+        (0: x, 1: y) at loaded node j.
+    S : ndarray, shape (n_elements, 2, 2, n_loaded, 2)
+        Stress [MPa] per newton, layout of :meth:`morphlab.Result.stress`.
+
+    Notes
+    -----
+    One :func:`morphlab.static` solve per unit load. With F clamped the skin's frame does not
+    move, so linear FFRF is exactly linear here and superposition holds.
+    """
+    X = _nodes(_check_elements(n_elements), DROOP_MM)[0]
+    idx = range(X.shape[0]) if nodes_index is None else list(nodes_index)
+    G = np.zeros((X.shape[0], 2, len(idx), 2))
+    S = np.zeros((n_elements, 2, 2, len(idx), 2))
+    for j, node in enumerate(idx):
+        for c in range(2):
+            m = _skin_only(X, t_w, E)
+            m.add_force("skin", at=X[node], force=(1.0 - c, float(c)), name="unit")
+            r = static(m, t=1.0)
+            G[:, :, j, c] = r.node_positions("skin")[-1] - X
+            S[..., j, c] = r.stress("skin")[-1]
+    return G, S
+
+
+def fit_link_forces(c_node: int = C_NODE, e_node: int = E_NODE, *, t_w: float = 2.0,
+                    E: float = E_AL, ridge: float = 1e-8) -> dict:
+    """Two nodal forces (at C and E) whose linear response best matches the target shape.
+
+    Minimises ``sum_k |X_k + u_k(f) - T_k|² + ridge |f|²`` over the four force components
+    ``f`` (ridge [mm²/N²] keeps away from solutions that stretch the skin axially with forces
+    of hundreds of kN, which no torque of 10 N·m could supply).
+
+    Returns
+    -------
+    dict
+        ``force_C``, ``force_E`` (2,) [N] on the skin; ``nodes`` (31, 2) the predicted morphed
+        nodes [mm]; ``rms``, ``max`` shape errors [mm]; ``max_stress`` [MPa].
+    """
+    X, T = _nodes(N_ELEMENTS, DROOP_MM)
+    G, S = skin_compliance([c_node, e_node], t_w=t_w, E=E)
+    cols = G.reshape(2 * X.shape[0], 4)
+    lhs = np.vstack([cols, np.sqrt(ridge) * np.eye(4)])
+    rhs = np.concatenate([(T - X).ravel(), np.zeros(4)])
+    f = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    nodes = X + (cols @ f).reshape(-1, 2)
+    e = np.sqrt(np.sum((nodes - T) ** 2, axis=1))
+    sig = S.reshape(-1, 4) @ f
+    return {"c_node": c_node, "e_node": e_node, "force_C": f[:2], "force_E": f[2:],
+            "nodes": nodes, "rms": float(np.sqrt(np.mean(e * e))), "max": float(e.max()),
+            "max_stress": float(np.max(np.abs(sig)))}
+
+
+def _rot(a: float) -> np.ndarray:
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+def inverse_mechanism(fit: dict, x_A: float, delta: float, M_t: float = DEFAULTS["M_t"]) -> dict:
+    """Bell crank whose equilibrium at the torque ``M_t`` is the fitted skin shape.
+
+    Parameters
+    ----------
+    fit : dict
+        Output of :func:`fit_link_forces`.
+    x_A : float
+        x of the pivot A [mm]; y_A follows from the crank's moment balance.
+    delta : float
+        Crank rotation from the undeformed to the morphed state [rad] (counter-clockwise,
+        the sense of a positive torque).
+    M_t : float
+        Torque [N·mm].
+
+    Returns
+    -------
+    dict
+        ``A``, ``B``, ``D`` (2,) undeformed positions [mm]; ``L_C``, ``L_E`` link lengths [mm]
+        (negative: no mechanism with links inside the skin for this ``x_A``, ``delta``).
+
+    Notes
+    -----
+    In the morphed state the two-force links lie along the skin forces ``F_C``, ``F_E``; the
+    crank's moment balance about A, ``(C' - A) x F_C + (E' - A) x F_E = M_t`` (primes: morphed
+    positions; the links' own lengths drop out), is a line for A. A link from the crank point
+    P to skin node Q with morphed direction ``e`` (pointing out of the skin) has
+    ``P' = Q' - L e``; rotating the crank back, ``P = A + R(-delta)(P' - A)``, and asking for
+    ``|Q - P| = L`` gives ``|g|² + 2 L g.m = 0`` with ``g = Q - A - R(-delta)(Q' - A)``,
+    ``m = R(-delta) e``: one linear equation for L.
+    """
+    X = _nodes(N_ELEMENTS, DROOP_MM)[0]
+    Xf = fit["nodes"]
+    c, e = fit["c_node"], fit["e_node"]
+    FC, FE = fit["force_C"], fit["force_E"]
+    Ft = FC + FE
+    kappa = (Xf[c, 0] * FC[1] - Xf[c, 1] * FC[0] + Xf[e, 0] * FE[1] - Xf[e, 1] * FE[0]) - M_t
+    A = np.array([x_A, (x_A * Ft[1] - kappa) / Ft[0]])
+    R = _rot(-delta)
+    out = {"A": A}
+    for name, node, F in (("B", c, FC), ("D", e, FE)):
+        t = X[node + 1] - X[node - 1]
+        outward = np.array([t[1], -t[0]])
+        e_dir = F / np.sqrt(F @ F)
+        if e_dir @ outward < 0:
+            e_dir = -e_dir
+        g = X[node] - A - R @ (Xf[node] - A)
+        m_dir = R @ e_dir
+        L = -(g @ g) / (2.0 * (g @ m_dir))
+        out[name] = X[node] - g - L * m_dir
+        out["L_" + ("C" if name == "B" else "E")] = float(L)
+    return out
+
+
+def torque_angle_curve(p: dict | None = None, delta_max: float = 0.8, steps: int = 32, *,
+                       nodes: tuple[int, int] = (C_NODE, E_NODE)):
+    """Static torque needed to hold the crank at each angle up to ``delta_max`` [rad].
+
+    Returns ``(delta (steps + 1,), M (steps + 1,) [N·mm], result)``; the crank angle is
+    prescribed by a drive and ``M`` is minus its multiplier. The mechanism follows a growing
+    torque without snapping only where ``M`` rises. ``nodes``: C and E (30-element mesh).
+    """
+    r = static(_assemble(p, N_ELEMENTS, drive=True, nodes=nodes), t=delta_max, steps=steps)
+    i = r.system.con_names.index("drive.r")
+    return r.t, -np.real(r.lam[:, i]), r
+
+
+def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 103.0, 104.0),
+                  deltas=(0.6, 0.65, 0.7), *, min_joint_clearance: float = 5.0,
+                  min_arm: float = 8.0, min_link: float = 20.0, min_slope: float = 0.4,
+                  verbose: bool = False) -> dict:
+    """Reproduce the mechanism design (module docstring, steps 1–3).
+
+    Parameters
+    ----------
+    pairs : sequence of (int, int)
+        (C node, E node) pairs. The full scan behind the defaults used
+        ``[(c, e) for c in range(3, 8) for e in range(21, 25)]``.
+    x_A_values : sequence of float
+        Pivot x positions [mm] (full scan: 80 ... 125 step 1).
+    deltas : sequence of float
+        Crank rotations [rad] (full scan: 0.4 ... 1.2 step 0.05).
+    min_joint_clearance, min_arm, min_link : float
+        Acceptance limits [mm]: A, B, D inside the skin by this much at all times; crank arms
+        |AB|, |AD| and links at least this long.
+    min_slope : float
+        Acceptance limit on the weakest slope of the torque path up to the design angle,
+        relative to its mean slope ``M_t / delta`` (margin against snap-through).
+    verbose : bool
+        Print every accepted candidate.
+
+    Returns
+    -------
+    dict
+        ``"best"``: the accepted candidate with the largest ``overload`` (the torque, in units
+        of ``M_t``, that turns the crank 30 % beyond its design angle: the design whose shape
+        moves least under an overload), or None; ``"candidates"``: all accepted ones. A
+        candidate holds the rounded design ``p`` (0.01 mm), the fit, link lengths, arms,
+        clearances and slopes.
+    """
+    accepted = []
+    M_t = DEFAULTS["M_t"]
+    n_path = 39  # 30 steps up to delta, 9 beyond (to 1.3 delta)
+    for c, e in pairs:
+        fit = fit_link_forces(c, e)
+        for x_A in x_A_values:
+            for delta in deltas:
+                mech = inverse_mechanism(fit, x_A, delta, M_t)
+                A, B, D = mech["A"], mech["B"], mech["D"]
+                arm_B = float(np.sqrt(np.sum((B - A) ** 2)))
+                arm_D = float(np.sqrt(np.sum((D - A) ** 2)))
+                if min(mech["L_C"], mech["L_E"]) < min_link or min(arm_B, arm_D) < min_arm:
+                    continue
+                p = {"x_A": round(float(A[0]), 2), "y_A": round(float(A[1]), 2),
+                     "x_B": round(float(B[0]), 2), "y_B": round(float(B[1]), 2),
+                     "x_D": round(float(D[0]), 2), "y_D": round(float(D[1]), 2)}
+                try:
+                    delta_k, M, res = torque_angle_curve(p, 1.3 * delta, n_path, nodes=(c, e))
+                except SolverError:  # no static path: rejected
+                    continue
+                slope = np.diff(M[:31]) / np.diff(delta_k[:31]) / (M_t / delta)
+                if slope.min() < min_slope or np.any(np.diff(M) <= 0.0):
+                    continue
+                clear = mechanism_clearance(res, p, nodes=(c, e))
+                if clear["joints"] < min_joint_clearance or clear["crossings"] or \
+                        clear["links"] <= 0.0:
+                    continue
+                cand = {"c_node": c, "e_node": e, "x_A": float(x_A), "delta": float(delta),
+                        "p": p, "fit_rms": fit["rms"], "fit_max": fit["max"],
+                        "fit_stress": fit["max_stress"], "L_C": mech["L_C"],
+                        "L_E": mech["L_E"], "arm_B": arm_B, "arm_D": arm_D,
+                        "min_slope": float(slope.min()), "torque_at_delta": float(M[30]),
+                        "overload": float(M[-1] / M_t),
+                        **{f"clear_{k}": v for k, v in clear.items()}}
+                accepted.append(cand)
+                if verbose:
+                    print({k: (round(v, 3) if isinstance(v, float) else v)
+                           for k, v in cand.items()})
+    best = max(accepted, key=lambda c: c["overload"]) if accepted else None
+    return {"best": best, "candidates": accepted}
+
+
+# -------------------------------------------------------------------------------------- study
+PAPER = {
+    "ks_max_stress_MPa": 149.96,
+    "max_error_mm": 1.185,
+    "rms_error_mm": 0.6348,
+    "table1": {
+        "ks_max_stress_MPa": {"t_w": -324.64, "M_t": 0.02664, "x_A": -0.7800, "y_A": 11.86,
+                              "E": -0.001664},
+        "rms_error_mm": {"t_w": -5.544, "M_t": 3.695e-4, "x_A": -0.01440, "y_A": 0.1668,
+                         "E": -5.280e-5},
+    },
+    "table2_s": {"primal": 148.0, "direct": 212.0, "finite_difference": 888.0},
+}
+UNITS = {"t_w": "mm", "M_t": "N mm", "x_A": "mm", "y_A": "mm", "E": "MPa"}
+
+
+def study(out=None, overrides: dict | None = None, *, quick: bool = False, figures: bool = True,
+          timing: bool = True, progress: bool = False):
+    """The paper's study on this model: responses, Table 1 sensitivities, Table 2 timing,
+    figures and ``out/morphing.json`` (see :func:`morphlab.study.run_study`).
+
+    ``overrides`` changes design variables of :data:`DEFAULTS`; ``quick`` doubles the time step
+    and times each run once.
+    """
+    from .study import run_study
+
+    p0 = dict(DEFAULTS)
+    for k, v in (overrides or {}).items():
+        if k not in p0:
+            raise ModelError(f"unknown design variable {k!r}; known: {sorted(p0)}")
+        p0[k] = float(v)
+    settings = dict(SETTINGS)
+    if quick:
+        settings["dt"] = 2.0 * settings["dt"]
+    return run_study(build, p0, RESPONSES, settings, body="skin", target=target(),
+                     undeformed=undeformed(), paper=PAPER, units=UNITS, out=out,
+                     figures=figures, timing=timing, repeats=1 if quick else 3,
+                     progress=progress,
+                     notes="Model, mechanism design and settings: morphlab.morphing.")

@@ -1,0 +1,233 @@
+"""The morphing leading-edge model (paper §4): build, settings, responses and design.
+
+References used here: the static equilibrium (for the settled end state), the hand-made inverse
+design (linear skin compliance plus the crank's moment balance, computed without the multibody
+solver), the energy balance of the run, the geometry of the links (mass, inertia), central
+differences (for the complex-step safety of the responses) and the design requirements
+(shape error, yield stress, mechanism inside the skin).
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import morphlab as ml
+from morphlab import morphing as mo
+
+
+@pytest.fixture(scope="module")
+def run():
+    return ml.simulate(mo.build(mo.DEFAULTS), **mo.SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def equilibrium():
+    return ml.static(mo.build(mo.DEFAULTS), t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS)
+
+
+def test_build_matches_the_paper_layout():
+    m = mo.build()
+    skin = m.body("skin")
+    assert skin.n_elements == 30 and skin.n_nodes == 31
+    X = mo.undeformed()
+    # F at the spar on the upper surface, G at the spar on the lower surface (exact, by
+    # construction of the nodes)
+    assert X[0, 0] == 137.5 and X[-1, 0] == 137.5 and X[0, 1] > 0.0 > X[-1, 1]
+    joints = {j.name: j for j in m.joints}
+    assert joints["F"].dofs == "xyr" and joints["G"].dofs == "yr"
+    assert {"A", "B", "B_weld", "C", "D", "E"} <= set(joints)
+    # C and E sit exactly on skin nodes, upper and lower surface
+    np.testing.assert_array_equal(joints["C"].at, X[mo.C_NODE])
+    np.testing.assert_array_equal(joints["E"].at, X[mo.E_NODE])
+    assert X[mo.C_NODE, 1] > 0.0 > X[mo.E_NODE, 1]
+    # five revolute joints and one weld between the rigid bodies and the skin/ground
+    kinds = sorted(type(j).__name__ for j in m.joints if j.name not in ("F", "G"))
+    assert kinds == ["Revolute"] * 5 + ["Weld"]
+    assert [t.name for t in m.torques] == ["M_t"] and m.torques[0].body.name == "crank"
+
+
+def test_link_mass_and_inertia_follow_the_geometry_and_pivot_A():
+    h = 1e-30
+    p = dict(mo.DEFAULTS, x_A=mo.DEFAULTS["x_A"] + 1j * h)
+    crank = mo.build(p).body("crank")
+    dx = mo.DEFAULTS["x_A"] - mo.GEOMETRY["x_B"]
+    dy = mo.DEFAULTS["y_A"] - mo.GEOMETRY["y_B"]
+    L = np.hypot(dx, dy)
+    m_ref = mo.RHO_AL * mo.LINK_SECTION_MM2 * L
+    # closed forms of a slender bar; round-off only
+    assert crank.mass.real == pytest.approx(m_ref, rel=1e-14)
+    assert crank.inertia.real == pytest.approx(m_ref * L * L / 12.0, rel=1e-14)
+    np.testing.assert_allclose(np.real(crank.position),
+                               [(mo.DEFAULTS["x_A"] + mo.GEOMETRY["x_B"]) / 2,
+                                (mo.DEFAULTS["y_A"] + mo.GEOMETRY["y_B"]) / 2], rtol=1e-15)
+    # d m / d x_A = rho A dx / L through build by complex step (exact; round-off only)
+    assert crank.mass.imag / h == pytest.approx(mo.RHO_AL * mo.LINK_SECTION_MM2 * dx / L,
+                                                rel=1e-12)
+    # B is fixed: moving A changes only the crank
+    other = mo.build(p)
+    for name in ("link_C", "arm", "link_E"):
+        assert np.imag(other.body(name).mass) == 0.0
+
+
+def test_run_is_cheap_and_converges(run):
+    assert run.status == "ok"
+    # Newton: quadratic convergence from the previous step's state needs ~2 iterations
+    assert run.newton_iterations[1:].mean() < 3.0
+    # Baumgarte-stabilised constraints: drift far below the shape error (~0.1 mm)
+    assert run.constraint_violation.max() < 1e-4
+
+
+def test_final_state_is_the_static_equilibrium(run, equilibrium):
+    dyn = run.node_positions("skin")[-1]
+    sta = equilibrium.node_positions("skin")[-1]
+    # settled: the nodes agree to 1 % of the RMS shape error (~0.1 mm)
+    assert np.max(np.hypot(*(dyn - sta).T)) < 0.01 * mo.rms_error(equilibrium)
+    # the stresses of the end state agree likewise (1 % of the largest)
+    s_dyn, s_sta = run.stress("skin")[-1], equilibrium.stress("skin")[-1]
+    assert np.max(np.abs(s_dyn - s_sta)) < 0.01 * np.max(np.abs(s_sta))
+
+
+def test_energy_balance_of_the_run(run):
+    en = run.energy
+    # work of the torque = strain + kinetic energy + damping dissipation; the residual is the
+    # numerical dissipation of generalized-alpha (rho_inf = 0.8) and the trapezoidal
+    # quadrature of the powers, both O(dt²): below 0.1 % of the work at this step
+    balance = en["work"] - en["total"] - en["damping"]
+    assert np.max(np.abs(balance)) < 1e-3 * en["work"][-1]
+    # settled: no kinetic energy left (relative to the strain energy)
+    assert en["kinetic"][-1] < 1e-6 * en["strain"][-1]
+
+
+def test_morphed_shape_and_stress_meet_the_requirements(run):
+    e_rms, e_max = mo.rms_error(run), mo.max_error(run)
+    ks, sig_max = mo.ks_max_stress(run), np.max(np.abs(run.stress("skin")))
+    # requirements: RMS error below 1 mm, stress below the yield stress of 6061-T6
+    assert e_rms < 1.0
+    assert ks < mo.YIELD_MPA
+    # eq. 41/42 by an independent formula
+    e = np.hypot(*(run.node_positions("skin")[-1] - mo.target()).T)
+    assert e_rms == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-14)
+    assert e_max == pytest.approx(e.max(), rel=1e-14)
+    # KS bounds: max <= KS <= max + ln(N)/rho; and within 1 % of the max (choice of RHO_KS)
+    n_values = 2 * run.stress("skin").size
+    assert sig_max <= ks <= sig_max + np.log(n_values) / mo.RHO_KS
+    assert ks < 1.01 * sig_max
+
+
+def test_time_step_halving_leaves_the_responses(run):
+    fine = ml.simulate(mo.build(), **dict(mo.SETTINGS, dt=mo.SETTINGS["dt"] / 2))
+    for name, fn in mo.RESPONSES.items():
+        # the responses are read from the settled state, so they barely depend on dt: < 1 %
+        assert fn(fine) == pytest.approx(fn(run), rel=1e-2), name
+
+
+def test_mechanism_stays_inside_the_skin(run):
+    c = mo.mechanism_clearance(run)
+    assert c["crossings"] == 0
+    # pivots at least 5 mm inside the skin at all times (room for pins and bearings); the
+    # links' interiors inside as well
+    assert c["joints"] > 5.0
+    assert c["links"] > 0.0
+    # all of it in the leading-edge section, in front of the spar
+    x = [mo.DEFAULTS["x_A"], mo.GEOMETRY["x_B"], mo.GEOMETRY["x_D"]]
+    assert 0.0 < min(x) and max(x) < 137.5
+
+
+def test_clearance_checks_on_a_square():
+    square = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    pts = np.array([[5.0, 5.0], [1.0, 9.0], [-1.0, 5.0], [11.0, 5.0], [5.0, 12.0]])
+    np.testing.assert_array_equal(mo._inside(pts, square), [True, True, False, False, False])
+    d = mo._distance_to_polyline(pts, np.vstack([square, square[:1]]))
+    np.testing.assert_allclose(d, [5.0, 1.0, 1.0, 1.0, 2.0], atol=1e-14)
+    hit = mo._crosses(np.array([5.0, 5.0]), np.array([15.0, 5.0]), square,
+                      np.roll(square, -1, axis=0))
+    np.testing.assert_array_equal(hit, [False, True, False, False])
+
+
+def test_responses_are_complex_safe(run):
+    # a random perturbation of the coordinates (every time step, so that the KS over the
+    # history moves too), scaled so that it changes the final stress by at most 1 MPa per unit
+    rng = np.random.default_rng(1)
+    dq = rng.standard_normal(run.q.shape[1])
+
+    def shifted(d):
+        return dataclasses.replace(run, q=run.q + d[None, :])
+
+    dq = dq / np.max(np.abs(shifted(dq).stress("skin")[-1] - run.stress("skin")[-1]))
+    h_cs, h_fd = 1e-30, 1e-2
+    for name, fn in mo.RESPONSES.items():
+        value = fn(shifted(1j * h_cs * dq))
+        cs = np.imag(value) / h_cs
+        fd = (fn(shifted(h_fd * dq)) - fn(shifted(-h_fd * dq))) / (2 * h_fd)
+        # central difference: truncation O(h²) (the KS's third derivative ~ rho_ks² = 100
+        # per MPa² over a 0.01 MPa step: ~1e-6 relative), round-off negligible
+        assert cs == pytest.approx(fd, rel=1e-5), name
+        # the real part is untouched by the imaginary perturbation
+        assert np.real(value) == pytest.approx(fn(run), rel=1e-14), name
+
+
+def test_complex_step_through_build_and_run_matches_differences():
+    # whole run in complex arithmetic with x_A + i h (build, compile, solver, response)
+    h = 1e-30
+    p = dict(mo.DEFAULTS)
+    cs = np.imag(mo.rms_error(ml.simulate(mo.build(dict(p, x_A=p["x_A"] + 1j * h)),
+                                          **mo.SETTINGS))) / h
+    step = 1e-4  # mm
+    fp = mo.rms_error(ml.simulate(mo.build(dict(p, x_A=p["x_A"] + step)), **mo.SETTINGS))
+    fm = mo.rms_error(ml.simulate(mo.build(dict(p, x_A=p["x_A"] - step)), **mo.SETTINGS))
+    # central difference error O(step²) plus Newton tolerance 1e-10 / step: ~1e-5 relative
+    assert cs == pytest.approx((fp - fm) / (2 * step), rel=1e-4)
+
+
+def test_design_equilibrium_is_the_linear_prediction():
+    # independent reference: the skin's linear compliance (unit-load static solves of the skin
+    # alone) and the crank's moment balance by hand; the multibody statics must land on the
+    # predicted shape at exactly the designed crank angle and torque
+    fit = mo.fit_link_forces(mo.C_NODE, mo.E_NODE)
+    best = mo.design_report(x_A_values=(mo.DEFAULTS["x_A"],), deltas=(mo.DESIGN_DELTA,))
+    mech = mo.inverse_mechanism(fit, mo.DEFAULTS["x_A"], mo.DESIGN_DELTA)
+    p = {"x_A": mech["A"][0], "y_A": mech["A"][1], "x_B": mech["B"][0], "y_B": mech["B"][1],
+         "x_D": mech["D"][0], "y_D": mech["D"][1]}
+    r = ml.static(mo.build(p), t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS)
+    # both sides come from Newton solves to 1e-10 of the model size (~160 mm), i.e. ~2e-8 mm;
+    # 1e-7 mm leaves room for the sum of 4 unit-load solutions in the fit
+    np.testing.assert_allclose(r.node_positions("skin")[-1], fit["nodes"], atol=1e-7)
+    assert r.dof("crank.theta")[-1] == pytest.approx(mo.DESIGN_DELTA, abs=1e-9)
+    # the inverse formula keeps the link lengths (|Q - P| = L)
+    for body, P, node in (("link_C", mech["B"], mo.C_NODE), ("link_E", mech["D"], mo.E_NODE)):
+        assert np.hypot(*(P - mo.undeformed()[node])) == pytest.approx(
+            mech["L_C" if body == "link_C" else "L_E"], rel=1e-12)
+    # the defaults are this design rounded to 0.01 mm
+    q = best["best"]["p"]
+    for k in ("x_A", "y_A"):
+        assert mo.DEFAULTS[k] == q[k]
+    for k in ("x_B", "y_B", "x_D", "y_D"):
+        assert mo.GEOMETRY[k] == q[k]
+
+
+def test_torque_path_rises_to_the_design_torque():
+    delta, M, _ = mo.torque_angle_curve(None, mo.DESIGN_DELTA, 26)
+    # monotonic: the crank follows a growing torque without snapping through
+    assert np.all(np.diff(M) > 0.0)
+    # at the design angle the holding torque is M_t; rounding the geometry to 0.01 mm moves
+    # it by a few per mille (moment of ~2 kN link forces over ~0.005 mm)
+    assert M[-1] == pytest.approx(mo.DEFAULTS["M_t"], rel=1e-2)
+
+
+def test_finer_skin_mesh_keeps_the_design():
+    r = ml.static(mo.build(n_elements=60), t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS)
+    assert r.node_positions("skin").shape[1] == 61
+    # C and E at the same material points
+    X60 = mo.undeformed(60)
+    np.testing.assert_allclose(X60[2 * mo.C_NODE], mo.undeformed()[mo.C_NODE], atol=1e-12)
+    np.testing.assert_allclose(X60[2 * mo.E_NODE], mo.undeformed()[mo.E_NODE], atol=1e-12)
+    assert mo.rms_error(r) < 1.0 and mo.ks_max_stress(r) < mo.YIELD_MPA
+    # other sizes: C and E at the nearest node (within half an element of the design)
+    X100 = mo.undeformed(100)
+    at_c = {tuple(j.at) for j in mo.build(n_elements=100).joints if j.name == "C"}
+    assert at_c == {tuple(X100[13])}
+    with pytest.raises(ml.ModelError):
+        mo.build(n_elements=5)
+    with pytest.raises(ml.ModelError):
+        mo.build({"x_Q": 1.0})
