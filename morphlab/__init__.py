@@ -5,7 +5,7 @@ Reproduces Gufler, Wehrle, Achleitner, Vidoni: "Flexible multibody dynamics and 
 analysis in the design of a morphing leading edge for high-performance sailplanes".
 """
 
-from . import io, responses
+from . import airfoil, io, morphing, responses
 from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
@@ -31,6 +31,6 @@ __all__ = [
     "Linear", "Model",
     "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
-    "SmoothStep", "SolverError", "State", "System", "compile_model", "io", "responses",
-    "sensitivities", "simulate", "static", "warmup", "__version__",
+    "SmoothStep", "SolverError", "State", "System", "airfoil", "compile_model", "io",
+    "morphing", "responses", "sensitivities", "simulate", "static", "warmup", "__version__",
 ]

@@ -46,7 +46,7 @@ def _median_time(fn, repeats: int) -> tuple[float, list[float]]:
 
 
 def _fmt(x: float) -> str:
-    return f"{x:.4g}" if abs(x) >= 1e-3 or x == 0 else f"{x:.4e}"
+    return f"{x:.4g}" if abs(x) >= 1e-3 or x == 0 else f"{x:.3e}"
 
 
 def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, target,
@@ -161,17 +161,16 @@ def _report(s: dict, names, units, paper, notes) -> str:
     lines.append(f"  RMS shape error {s['rms_error_mm']:10.4g} mm  | "
                  f"{paper.get('rms_error_mm', float('nan')):.4g} mm")
     lines.append("")
-    lines.append("Table 1: design sensitivities (ours / paper)")
-    head = "  response            " + "".join(f"d/d{n} [/{units.get(n, '-')}]".rjust(24)
-                                              for n in names)
-    lines.append(head)
-    for key, label in (("ks_max_stress_MPa", "dσ_KS [MPa]"), ("rms_error_mm", "de_rms [mm]")):
-        ours = s["sensitivities"][key]
-        ref = paper.get("table1", {}).get(key, {})
-        row = f"  {label:18s}" + "".join(
-            f"{_fmt(ours[n]) + ' / ' + (_fmt(ref[n]) if n in ref else '-'):>24s}"
-            for n in names)
-        lines.append(row)
+    lines.append("Table 1: design sensitivities, ours and (paper)")
+    lines.append("  variable     unit        dσ_KS [MPa/unit]            de_rms [mm/unit]")
+    t1 = paper.get("table1", {})
+    for n in names:
+        cells = []
+        for key in ("ks_max_stress_MPa", "rms_error_mm"):
+            ref = t1.get(key, {}).get(n)
+            cells.append(f"{_fmt(s['sensitivities'][key][n]):>11s} "
+                         f"({_fmt(ref) if ref is not None else '-':>10s})")
+        lines.append(f"  {n:12s} {units.get(n, '-'):8s} " + "     ".join(cells))
     t = s["timing_s"]
     if t:
         lines.append("")

@@ -1,0 +1,42 @@
+"""The command line writes what it promises and fails with one line on bad input."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from morphlab.cli import main
+
+
+def test_morphing_writes_tables_figures_and_json(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["morphing", "--out", str(out), "--quick"]) == 0
+    printed = capsys.readouterr().out
+    assert "Table 1" in printed and "Table 2" in printed
+    data = json.loads((out / "morphing.json").read_text())
+    for key in ("ks_max_stress_MPa", "max_error_mm", "rms_error_mm"):
+        assert isinstance(data[key], float)
+    names = {"t_w", "M_t", "x_A", "y_A", "E"}
+    assert set(data["sensitivities"]["ks_max_stress_MPa"]) == names
+    assert set(data["sensitivities"]["rms_error_mm"]) == names
+    t = data["timing_s"]
+    assert all(t[k] > 0 for k in ("primal", "direct", "finite_difference"))
+    # the morphed shape meets the design bounds of the study (RMS < 1 mm, KS < yield 240 MPa)
+    assert data["rms_error_mm"] < 1.0 and data["ks_max_stress_MPa"] < 240.0
+    for fig in ("fig5b_motion", "fig6_stress", "fig7_profiles", "fig9_error_sens"):
+        assert (out / f"{fig}.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("args, word", [
+    (["--set", "t_w=abc"], "not a number"),
+    (["--set", "nonsense=1"], "unknown design variable"),
+    (["--set", "t_w=-2"], "thickness"),
+])
+def test_bad_input_exits_with_one_line(tmp_path, args, word):
+    proc = subprocess.run([sys.executable, "-m", "morphlab.cli", "morphing", "--out",
+                           str(tmp_path), "--no-timing", "--no-figures", *args],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in proc.stderr
