@@ -164,6 +164,17 @@ def kernel_arrays(system: System, dtype=None) -> tuple:
 
 SCHEMES = ("arnold-bruls", "paper")
 
+# SuperLU settings for the saddle-point matrix. The matrix is structurally nearly symmetric
+# (mass/stiffness blocks plus J and J^T), so a minimum-degree ordering of A^T + A in
+# SymmetricMode with threshold pivoting (prefer the diagonal unless it is < 0.1 of the column
+# maximum) keeps the sparsity; the default COLAMD with partial pivoting filled the LU almost
+# densely on long skins. Measured on the morphing model (n = 123 / 333 / 933 unknowns):
+# 0.20 / 0.36 / 1.3 ms per factorization against 0.23 / 1.2 / 9.2 ms with COLAMD (also with
+# its column order computed once and reused); L+U nonzeros 18k against 410k at n = 933.
+# The order is computed once per run and reused (Stepper._lu).
+SPLU_OPTIONS = dict(permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1,
+                    options=dict(SymmetricMode=True))
+
 
 @dataclass
 class StepCoefficients:
@@ -262,7 +273,7 @@ class Stepper:
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
         self._perm = None
-        self._Ap = None
+        self._B = None
         self.polish = 0  # extra Newton updates after convergence (complex-step reference runs)
 
     # ---- building blocks
@@ -340,28 +351,31 @@ class Stepper:
                              shape=(self.n, self.n))
 
     def _lu(self):
-        """Factor the filled matrix. The fill-reducing column order (COLAMD) is computed at the
-        first factorization and reused: the pattern is fixed, so later matrices are permuted
-        by a precomputed gather of ``data`` and factored with ``permc_spec="NATURAL"``
-        (SuperLU would otherwise recompute the ordering every time)."""
+        """Factor the filled matrix (SuperLU, see :data:`SPLU_OPTIONS`).
+
+        The first factorization computes the fill-reducing order ``q`` (minimum degree on
+        A^T + A). The pattern is fixed, so later matrices are permuted symmetrically,
+        ``B = A[q][:, q]``, by a precomputed gather of the CSC data and factored with
+        ``permc_spec="NATURAL"``: same fill, without recomputing the ordering (measured 9.3 ms
+        against 61 ms per factorization at 9033 unknowns, 0.9 against 1.9 ms at 933)."""
         if self._perm is None:
-            lu = splu(self.matrix(), permc_spec="COLAMD")
-            perm_c = lu.perm_c
+            lu = splu(self.matrix(), **SPLU_OPTIONS)
+            q = np.argsort(lu.perm_c)  # position j of the factored matrix holds column q[j]
             s = self.system
-            starts, ends = s.indptr[:-1], s.indptr[1:]
-            order = np.argsort(perm_c)  # new column j holds old column order[j]
-            counts = (ends - starts)[order]
-            gather = np.concatenate([np.arange(starts[j], ends[j]) for j in order]) \
-                if s.nnz else np.zeros(0, dtype=np.int64)
-            indptr_p = np.concatenate([[0], np.cumsum(counts)]).astype(s.indptr.dtype)
-            indices_p = s.indices[gather]
-            self._perm = (order, gather)
-            self._Ap = sp.csc_matrix((self.data[gather], indices_p, indptr_p),
-                                     shape=(self.n, self.n))
+            tag = sp.csc_matrix((np.arange(1, s.nnz + 1, dtype=np.float64), s.indices,
+                                 s.indptr), shape=(self.n, self.n))
+            B = tag[q][:, q].tocsc()
+            B.sort_indices()
+            gather = (B.data - 1).astype(np.int64)
+            self._perm = (q, gather)
+            self._B = sp.csc_matrix((self.data[gather], B.indices, B.indptr),
+                                    shape=(self.n, self.n))
             return _PermutedLU(lu, None)
-        order, gather = self._perm
-        np.take(self.data, gather, out=self._Ap.data)
-        return _PermutedLU(splu(self._Ap, permc_spec="NATURAL"), order)
+        q, gather = self._perm
+        np.take(self.data, gather, out=self._B.data)
+        return _PermutedLU(splu(self._B, permc_spec="NATURAL",
+                                diag_pivot_thresh=SPLU_OPTIONS["diag_pivot_thresh"],
+                                options=SPLU_OPTIONS["options"]), q)
 
     def factor(self, z, qh, vh, t1, coef, F=None):
         """Fill and factor the exact Newton matrix at ``z``."""
@@ -503,20 +517,20 @@ class Stepper:
 
 
 class _PermutedLU:
-    """An LU of ``A P`` (columns permuted by ``order``) that solves ``A x = b``."""
+    """The LU of ``B = A[q][:, q]`` solving ``A x = b`` (``q is None``: the LU of ``A``)."""
 
-    __slots__ = ("lu", "order")
+    __slots__ = ("lu", "q")
 
-    def __init__(self, lu, order):
+    def __init__(self, lu, q):
         self.lu = lu
-        self.order = order
+        self.q = q
 
     def solve(self, b):
-        y = self.lu.solve(b)
-        if self.order is None:
-            return y
+        if self.q is None:
+            return self.lu.solve(b)
+        y = self.lu.solve(b[self.q])
         x = np.empty_like(y)
-        x[self.order] = y
+        x[self.q] = y
         return x
 
 
