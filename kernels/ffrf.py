@@ -107,6 +107,40 @@ def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
 
 
 @njit(cache=True)
+def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af, Mq, Sq):
+    """Reductions over a body's flex coordinates shared by residual and Jacobian:
+    ``c_u`` (2), ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``,
+    ``q_f^T M q_f``, ``q_f^T M q_f'``, ``I_0ĨS.a_f`` and ``(S̃ q_f).a_f``."""
+    m = body_scal[b, 0]
+    cux = body_scal[b, 1]
+    cuy = body_scal[b, 2]
+    isax = 0.0 * m
+    isay = 0.0 * m
+    isvx = 0.0 * m
+    isvy = 0.0 * m
+    i0s_q = 0.0 * m
+    i0s_v = 0.0 * m
+    qMq = 0.0 * m
+    qMv = 0.0 * m
+    i0is_a = 0.0 * m
+    sq_a = 0.0 * m
+    for k in range(flex_off[b], flex_off[b + 1]):
+        cux += flex_IS[k, 0] * qf[k]
+        cuy += flex_IS[k, 1] * qf[k]
+        isax += flex_IS[k, 0] * af[k]
+        isay += flex_IS[k, 1] * af[k]
+        isvx += flex_IS[k, 0] * vf[k]
+        isvy += flex_IS[k, 1] * vf[k]
+        i0s_q += flex_I0S[k] * qf[k]
+        i0s_v += flex_I0S[k] * vf[k]
+        qMq += qf[k] * Mq[k]
+        qMv += Mq[k] * vf[k]
+        i0is_a += flex_I0IS[k] * af[k]
+        sq_a += Sq[k] * af[k]
+    return cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a
+
+
+@njit(cache=True)
 def body_residual(
     q, v, a, wm, wf, gravity,
     body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
@@ -141,31 +175,9 @@ def body_residual(
         tha = a[ith]
         c = np.cos(th)
         s = np.sin(th)
-        cux = body_scal[b, 1]
-        cuy = body_scal[b, 2]
-        isax = 0.0 * m
-        isay = 0.0 * m
-        isvx = 0.0 * m
-        isvy = 0.0 * m
-        i0s_q = 0.0 * m
-        i0s_v = 0.0 * m
-        qMq = 0.0 * m
-        qMv = 0.0 * m
-        i0is_a = 0.0 * m
-        sq_a = 0.0 * m
-        for k in range(flex_off[b], flex_off[b + 1]):
-            cux += flex_IS[k, 0] * qf[k]
-            cuy += flex_IS[k, 1] * qf[k]
-            isax += flex_IS[k, 0] * af[k]
-            isay += flex_IS[k, 1] * af[k]
-            isvx += flex_IS[k, 0] * vf[k]
-            isvy += flex_IS[k, 1] * vf[k]
-            i0s_q += flex_I0S[k] * qf[k]
-            i0s_v += flex_I0S[k] * vf[k]
-            qMq += qf[k] * Mq[k]
-            qMv += Mq[k] * vf[k]
-            i0is_a += flex_I0IS[k] * af[k]
-            sq_a += Sq[k] * af[k]
+        (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
+         sq_a) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
+                            Mq, Sq)
         # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
         Acx = c * cux - s * cuy
         Acy = s * cux + c * cuy
@@ -253,27 +265,9 @@ def body_jacobian(
         tha = a[ith]
         c = np.cos(th)
         s = np.sin(th)
-        cux = body_scal[b, 1]
-        cuy = body_scal[b, 2]
-        isax = 0.0 * m
-        isay = 0.0 * m
-        isvx = 0.0 * m
-        isvy = 0.0 * m
-        i0s_q = 0.0 * m
-        i0s_v = 0.0 * m
-        qMq = 0.0 * m
-        qMv = 0.0 * m
-        for k in range(flex_off[b], flex_off[b + 1]):
-            cux += flex_IS[k, 0] * qf[k]
-            cuy += flex_IS[k, 1] * qf[k]
-            isax += flex_IS[k, 0] * af[k]
-            isay += flex_IS[k, 1] * af[k]
-            isvx += flex_IS[k, 0] * vf[k]
-            isvy += flex_IS[k, 1] * vf[k]
-            i0s_q += flex_I0S[k] * qf[k]
-            i0s_v += flex_I0S[k] * vf[k]
-            qMq += qf[k] * Mq[k]
-            qMv += Mq[k] * vf[k]
+        (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
+         _) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
+                            Mq, Sq)
         Acx = c * cux - s * cuy
         Acy = s * cux + c * cuy
         AIcx = -Acy
