@@ -188,3 +188,35 @@ def test_failure_in_the_initial_solve_keeps_an_empty_result():
     assert e.step == 0 and e.time == 0.0
     assert e.result.status == "failed" and e.result.n_t == 0
     assert e.result.q.shape == (0, e.result.system.n_dof)
+
+
+# ------------------------------------------------------------------- automatic step reduction
+def _suddenly_loaded_four_bar():
+    m = flexible_mechanism(n_elem=12)
+    # a point load switched on at t = 0: the first step starts far from equilibrium
+    m.forces[0].profile = ml.Constant(1.0)
+    return m
+
+
+def test_step_reduction_rescues_a_failing_step_and_reports_it():
+    m = _suddenly_loaded_four_bar()
+    with pytest.raises(ml.ConvergenceError):
+        ml.simulate(m, t_end=0.01, dt=2e-3, max_iter=3)
+    res = ml.simulate(m, t_end=0.01, dt=2e-3, max_iter=3, max_halvings=6)
+    assert res.status == "ok" and len(res.t) == 6  # results stay on the regular grid
+    assert res.step_reductions and res.step_reductions[0][0] == pytest.approx(2e-3)
+    assert res.step_reductions[0][1] >= 2
+    # the sub-stepped run agrees with a run at the smaller step on the same grid points
+    # (max |dq| small against the 60 mm model: both are second-order accurate in time)
+    fine = ml.simulate(m, t_end=0.01, dt=2e-3 / res.step_reductions[0][1], max_iter=12)
+    stride = res.step_reductions[0][1]
+    assert np.max(np.abs(fine.q[::stride][:2] - res.q[:2])) < 1e-6 * 60.0
+
+
+def test_step_reduction_is_refused_with_an_observer():
+    from morphlab.solver import Settings, integrate
+
+    system = ml.compile_model(flexible_mechanism())
+    with pytest.raises(ml.ModelError, match="step reduction"):
+        integrate(system, Settings(t_end=0.01, dt=1e-3), observer=lambda info: None,
+                  max_halvings=2)
