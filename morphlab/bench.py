@@ -317,8 +317,23 @@ def table(results: dict) -> str:
             lines.append(f"| {k} | {sec:.4f} | {100 * p['fractions'][k]:.1f} % |")
         lines.append("")
     x = results["cases"].get("exudyn")
-    if x:
-        lines += ["### Exudyn", "", f"{json.dumps(x)}", ""]
+    if x and "rows" in x:
+        lines += ["### Side by side with Exudyn (flexible pendulum, same elements and steps)", "",
+                  "| elements | morphlab per step [µs] | Exudyn default [µs] | Exudyn full Newton "
+                  "[µs] | morphlab direct [s] | Exudyn FD [s] | Exudyn FD / morphlab direct |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in x["rows"]:
+            p, s = r["primal"], r["sensitivities"]["timing_s"]
+            lines.append(
+                f"| {r['n_elements']} | {1e6 * p['morphlab']['per_step_s']['median']:.0f} | "
+                f"{1e6 * p['exudyn_modified_newton']['per_step_s']['median']:.0f} | "
+                f"{1e6 * p['exudyn_full_newton']['per_step_s']['median']:.0f} | "
+                f"{s['morphlab_direct']['median']:.3f} | "
+                f"{s['exudyn_forward_difference']['median']:.3f} | "
+                f"{r['sensitivities']['ratios']['exudyn_fd_over_morphlab_direct']:.2f} |")
+        lines += ["", x.get("notes", ""), ""]
+    elif x:
+        lines += ["### Exudyn", "", x.get("skipped", json.dumps(x)), ""]
     return "\n".join(lines)
 
 
