@@ -17,11 +17,13 @@ from .errors import (
     SingularMatrixError,
     SolverError,
 )
+from .integrator import GeneralizedAlpha
 from .model import Beam, Model, RigidBody
 from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
 from .results import Result
 from .sensitivity import SensitivityResult, sensitivities
-from .solver import GeneralizedAlpha, Settings, State, simulate, static
+from .solver import Settings, State, simulate
+from .statics import static
 from .warmup import warmup
 
 __version__ = "0.1.0"

@@ -89,7 +89,7 @@ from .errors import ModelError, SolverError
 from .model import Model
 from .profiles import Custom, SmoothStep
 from .responses import distance, ks_abs, max_by_real, rms
-from .solver import static
+from .statics import static
 
 __all__ = [
     "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",

@@ -39,6 +39,7 @@ import numpy as np
 
 from .compile import System, compile_model
 from .errors import SensitivityError
+from .integrator import newmark_predict, newmark_update
 from .kernels.assemble import PERTURBED, pseudo_residuals
 from .results import Result
 from .solver import (
@@ -46,8 +47,6 @@ from .solver import (
     StepInfo,
     integrate,
     kernel_arrays,
-    newmark_predict,
-    newmark_update,
     table_at,
     time_table,
 )

@@ -35,49 +35,18 @@ from scipy.sparse.linalg import splu
 
 from .compile import System, compile_model
 from .errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
+from .integrator import (
+    INITIAL,
+    SCHEMES,
+    GeneralizedAlpha,
+    StepCoefficients,
+    _is_real,
+    newmark_predict,
+    newmark_update,
+    step_coefficients,
+)
 from .kernels.assemble import add_residual, fill_matrix
 from .model import Model
-
-
-def _is_real(x) -> bool:
-    """A real number that is not a boolean."""
-    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
-
-
-@dataclass(frozen=True)
-class GeneralizedAlpha:
-    """Coefficients of the generalized-alpha method (Chung & Hulbert 1993) from ``rho_inf``.
-
-    ``alpha_m = (2 rho - 1)/(rho + 1)``, ``alpha_f = rho/(rho + 1)``,
-    ``gamma = 1/2 - alpha_m + alpha_f``, ``beta = (1 - alpha_m + alpha_f)²/4``: second order,
-    unconditionally stable for linear problems, spectral radius ``rho_inf`` at infinite
-    frequency. ``rho_inf = 1`` is the trapezoidal rule (no dissipation).
-    """
-
-    rho_inf: float = 0.8
-
-    def __post_init__(self):
-        r = self.rho_inf
-        if not (_is_real(r) and 0.0 <= r <= 1.0):
-            raise ModelError(f"rho_inf must be a number in [0, 1], got {r!r}")
-
-    @property
-    def alpha_m(self) -> float:
-        return (2.0 * self.rho_inf - 1.0) / (self.rho_inf + 1.0)
-
-    @property
-    def alpha_f(self) -> float:
-        return self.rho_inf / (self.rho_inf + 1.0)
-
-    @property
-    def gamma(self) -> float:
-        return 0.5 - self.alpha_m + self.alpha_f
-
-    @property
-    def beta(self) -> float:
-        return 0.25 * (1.0 - self.alpha_m + self.alpha_f) ** 2
-
-    order = 2
 
 
 class State(NamedTuple):
@@ -162,8 +131,6 @@ def kernel_arrays(system: System, dtype=None) -> tuple:
             s.con_map_col, s.con_map_H, s.load_map)
 
 
-SCHEMES = ("arnold-bruls", "paper")
-
 # SuperLU settings for the saddle-point matrix. The matrix is structurally nearly symmetric
 # (mass/stiffness blocks plus J and J^T), so a minimum-degree ordering of A^T + A in
 # SymmetricMode with threshold pivoting (prefer the diagonal unless it is < 0.1 of the column
@@ -174,76 +141,6 @@ SCHEMES = ("arnold-bruls", "paper")
 # The order is computed once per run and reused (Stepper._lu).
 SPLU_OPTIONS = dict(permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1,
                     options=dict(SymmetricMode=True))
-
-
-@dataclass
-class StepCoefficients:
-    """One step of the generalized-alpha recurrence, as data.
-
-    The unknown is ``a = q''_{n+1}``; with ``g`` the algorithmic acceleration::
-
-        q_{n+1} = q_hat + bh2 a,   q_hat = q_n + h v_n + cqa a_n + cqg g_n
-        v_{n+1} = v_hat + gh a,    v_hat = v_n + cva a_n + cvg g_n
-        g_{n+1} = ga a + gan a_n + ggn g_n
-
-    and the residual is ``E(s_{n+1}; new) + E(s_n; old)`` (``old is None``: no history).
-    The update is linear, so :func:`newmark_predict` / :func:`newmark_update` advance states
-    ``(n,)`` and sensitivity columns ``(n, n_x)`` alike.
-    """
-
-    h: float
-    new: tuple  # weights (wm, wl, wf, wcm, wcf)
-    old: tuple | None
-    bh2: float
-    gh: float
-    pred: tuple = (0.0, 0.0, 0.0, 0.0)  # (cqa, cqg, cva, cvg)
-    upd: tuple = (1.0, 0.0, 0.0)  # (ga, gan, ggn)
-
-
-def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,
-                      constraint_form: str = "paper") -> StepCoefficients:
-    """Coefficients of a step of length ``h``.
-
-    ``"arnold-bruls"`` (default; Arnold & Brüls 2007, Multibody Syst. Dyn. 18:185–202): the
-    equations of motion and the acceleration constraints hold at ``t_{n+1}`` for the physical
-    acceleration ``a``, and the algorithmic acceleration obeys
-    ``(1 - alpha_m) g_{n+1} + alpha_m g_n = (1 - alpha_f) a_{n+1} + alpha_f a_n``. Second order
-    for every ``rho_inf``.
-
-    ``"paper"`` (eq. 25–26): the residual weights ``M a + J^T lam`` with ``alpha_m`` and the
-    forces with ``alpha_f`` between ``t_n`` and ``t_{n+1}`` and ``a`` is the algorithmic
-    acceleration. Second order for ``rho_inf = 1`` (where both schemes coincide) and for linear
-    systems; with a configuration-dependent mass matrix or constraints the weighting mixes
-    values ``(alpha_m - alpha_f) h`` apart and the error is first order (measured: pendulum
-    period error slope 0.96 at rho_inf = 0.9, tests/test_convergence_dt.py).
-    """
-    am, af, b, gm = method.alpha_m, method.alpha_f, method.beta, method.gamma
-    if scheme == "paper":
-        w_m, w_f = (am, af) if constraint_form == "paper" else (0.0, 0.0)
-        return StepCoefficients(
-            h, (1 - am, 1 - am, 1 - af, 1 - w_m, 1 - w_f), (am, am, af, w_m, w_f),
-            b * h * h, gm * h, ((0.5 - b) * h * h, 0.0, (1 - gm) * h, 0.0), (1.0, 0.0, 0.0))
-    r = 1.0 / (1.0 - am)
-    return StepCoefficients(
-        h, (1.0, 1.0, 1.0, 1.0, 1.0), None, b * h * h * (1 - af) * r, gm * h * (1 - af) * r,
-        (b * h * h * af * r, (0.5 - b) * h * h - b * h * h * am * r,
-         gm * h * af * r, (1 - gm) * h - gm * h * am * r),
-        ((1 - af) * r, af * r, -am * r))
-
-
-def newmark_predict(coef: StepCoefficients, q, v, a, g):
-    """Predictors ``(q_hat, v_hat)``; works on states (n,) and sensitivities (n, n_x)."""
-    cqa, cqg, cva, cvg = coef.pred
-    return q + coef.h * v + cqa * a + cqg * g, v + cva * a + cvg * g
-
-
-def newmark_update(coef: StepCoefficients, qh, vh, a1, a, g):
-    """``(q_{n+1}, v_{n+1}, g_{n+1})`` from the predictors and the new acceleration ``a1``."""
-    ga, gan, ggn = coef.upd
-    return qh + coef.bh2 * a1, vh + coef.gh * a1, ga * a1 + gan * a + ggn * g
-
-
-INITIAL = StepCoefficients(0.0, (1.0, 1.0, 1.0, 1.0, 1.0), None, 0.0, 0.0)
 
 
 class Stepper:
@@ -760,117 +657,3 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
     return integrate(system, settings, observer=observer, progress=progress,
                      max_halvings=max_halvings, q0=None if q0 is None else np.asarray(q0),
                      v0=None if v0 is None else np.asarray(v0))
-
-
-def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
-           max_iter: int = 30, q_start=None):
-    """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on
-    ``(q, lam)``: ``K q + J^T lam - Q_g - Q_ext = 0``, ``Phi(q, t) = 0``.
-
-    Parameters
-    ----------
-    model : Model or System
-    t : float
-        Time at which loads and driving constraints are evaluated [s].
-    steps : int
-        Continuation steps: equilibria are solved at ``t_k = k t / steps`` in turn, each
-        starting from the previous one (load control along the model's own profiles).
-    tol : float
-        Newton stops when the position correction is below ``tol`` times the model size.
-    max_iter : int
-        Newton iteration limit per continuation step.
-    q_start : (n_dof,), optional
-        Starting configuration (default: the initial configuration).
-
-    Returns
-    -------
-    Result
-        The equilibrium path (``n_t = steps + 1``), velocities and accelerations zero.
-
-    Notes
-    -----
-    Uses the residual and matrix kernels of the dynamic solver with the inertia weight 0, the
-    constraint rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing
-    for the Newton correction of ``q`` (``beta h² = 1``).
-    """
-    from .errors import SolverError
-    from .results import Result
-
-    if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
-            and steps >= 1):
-        raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
-    if not (_is_real(t) and np.isfinite(t)):
-        raise ModelError(f"t must be a finite number, got {t!r}")
-    if not (_is_real(tol) and 0 < tol < 1):
-        raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
-    system = model if isinstance(model, System) else compile_model(model)
-    settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
-                        max_iter=max_iter, stabilization=0.0)
-    stp = Stepper(system, settings, scale=1.0)
-    stp.b0, stp.b1 = 1.0, 0.0
-    coef = StepCoefficients(1.0, (0.0, 1.0, 1.0, 0.0, 1.0), None, 1.0, 0.0)
-    n_dof = system.n_dof
-    L = system.length_scale
-    dt = system.dtype
-    zero_v = np.zeros(n_dof, dtype=dt)
-    R0 = np.zeros(system.n, dtype=dt)
-    q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
-    lam = np.zeros(system.n_con, dtype=dt)
-    # scale the constraint rows like the stiffness diagonal
-    stp._fill(np.zeros(system.n, dtype=dt), q, zero_v, 0.0, coef, scale=1.0)
-    d = np.abs(np.real(stp.matrix().diagonal()[:n_dof]))
-    stp.scale = float(np.median(d[d > 0])) if np.any(d > 0) else 1.0
-    times = np.linspace(0.0, float(t), steps + 1) if steps > 1 else np.array([0.0, float(t)])
-    Q = np.zeros((len(times), n_dof), dtype=dt)
-    LAM = np.zeros((len(times), system.n_con), dtype=dt)
-    iters = np.zeros(len(times), dtype=np.int64)
-    Q[0] = q
-    t_wall = _time.perf_counter()
-
-    def result(k, status, message):
-        sl = slice(0, k + 1)
-        viol = np.array([np.max(np.abs(system.constraint_violation(Q[i], zero_v, times[i])[0]),
-                                initial=0.0) for i in range(k + 1)])
-        return Result(system=system, settings=settings, t=times[sl].copy(), q=Q[sl].copy(),
-                      v=np.zeros_like(Q[sl]), a=np.zeros_like(Q[sl]), lam=LAM[sl].copy(),
-                      newton_iterations=iters[sl].copy(), constraint_violation=viol,
-                      velocity_violation=np.zeros(k + 1), status=status, message=message,
-                      n_factorizations=stp.n_factorizations,
-                      wall_time=_time.perf_counter() - t_wall, scale=stp.scale)
-
-    for k in range(1, len(times)):
-        tk = float(times[k])
-        c, cd, cdd, F, T = stp.time_arrays(tk)
-        ta = (c, cd * 0, cdd * 0, F, T)
-        err = np.inf
-        it = 0
-        for it in range(1, max_iter + 1):  # noqa: B007 - it is recorded after the loop
-            z = np.concatenate([np.zeros(n_dof, dtype=dt), lam / stp.scale])
-            R = stp.residual(z, q, zero_v, tk, coef, R0, time_arrays=ta)
-            if not np.all(np.isfinite(R)):
-                e = NonFiniteError(f"static solve: non-finite residual at t={tk:.6g}", time=tk,
-                                   step=k, residual=float("nan"))
-                e.result = result(k - 1, "failed", str(e))
-                raise e
-            try:
-                lu = stp.factor(z, q, zero_v, tk, coef)
-            except SolverError as e:
-                e.step = k
-                e.result = result(k - 1, "failed", str(e))
-                raise
-            dz = lu.solve(-R)
-            q = q + dz[:n_dof]
-            lam = (z[n_dof:] + dz[n_dof:]) * stp.scale
-            err = float(np.max(np.abs(dz[:n_dof]))) / L
-            if err <= tol:
-                break
-        else:
-            e = ConvergenceError(
-                f"static solve did not converge at t={tk:.6g} (continuation step {k}) in "
-                f"{max_iter} iterations: position correction {err:.3g} of the model size; "
-                f"dominant equations: {', '.join(stp.dominant(R))}; try more steps",
-                time=tk, step=k, residual=float(np.linalg.norm(R)), dominant=stp.dominant(R))
-            e.result = result(k - 1, "failed", str(e))
-            raise e
-        Q[k], LAM[k], iters[k] = q, lam, it
-    return result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")
