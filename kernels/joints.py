@@ -327,3 +327,31 @@ def load_jacobian(q, cf, bh2, F, load_dofs, load_u0, load_map, data):
                     p = load_map[i, j, m]
                     if p >= 0:
                         data[p] -= cf * bh2 * F[i, k] * H[j, m]
+
+
+@njit(cache=True)
+def constraint_violation_history(Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
+    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call.
+
+    ``Q, V`` (n_t, n_dof); ``C, CD`` (n_t, n_con) constraint targets; ``viol, vviol`` (n_t,),
+    out (magnitudes of the real parts: a diagnostic, not differentiated)."""
+    n_con = con_kind.shape[0]
+    phi = np.zeros(n_con, dtype=Q.dtype)
+    phid = np.zeros(n_con, dtype=Q.dtype)
+    for k in range(Q.shape[0]):
+        constraint_values(Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
+        m0 = 0.0
+        m1 = 0.0
+        for i in range(n_con):
+            a = phi[i].real
+            b = phid[i].real
+            if a < 0:
+                a = -a
+            if b < 0:
+                b = -b
+            if a > m0:
+                m0 = a
+            if b > m1:
+                m1 = b
+        viol[k] = m0
+        vviol[k] = m1

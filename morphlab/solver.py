@@ -46,6 +46,7 @@ from .integrator import (
     step_coefficients,
 )
 from .kernels.assemble import add_residual, fill_matrix
+from .kernels.joints import constraint_violation_history
 from .model import Model
 
 
@@ -534,6 +535,11 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
 
     def make_result(n_done, status, message):
         sl = slice(0, n_done + 1)
+        if n_con and n_done >= 0:
+            constraint_violation_history(
+                Q[sl], V[sl], np.ascontiguousarray(table[0][sl]),
+                np.ascontiguousarray(table[1][sl]), system.con_kind, system.con_dofs,
+                np.ascontiguousarray(system.con_u0, dtype=dt), viol[sl], vviol[sl])
         return Result(system=system, settings=settings, t=t[sl].copy(), q=Q[sl].copy(),
                       v=V[sl].copy(), a=A[sl].copy(), lam=LAM[sl].copy(),
                       newton_iterations=iters[sl].copy(), constraint_violation=viol[sl].copy(),
@@ -545,10 +551,6 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     def record(n, st, it):
         Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
         iters[n] = it
-        if n_con:
-            phi, phid = system.constraint_violation(st.q, st.v, st.t)
-            viol[n] = float(np.max(np.abs(phi)))
-            vviol[n] = float(np.max(np.abs(phid)))
 
     from .errors import SolverError
 
