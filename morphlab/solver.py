@@ -77,6 +77,7 @@ class Settings:
     constraint_form: str = "paper"
     t_start: float = 0.0
     scheme: str = "arnold-bruls"
+    newton: str = "full"
 
     def validate(self) -> None:
         """Raise :class:`ModelError` naming the first invalid setting."""
@@ -99,6 +100,8 @@ class Settings:
             v = getattr(self, name)
             if not (_is_real(v) and np.isfinite(v) and v >= 0):
                 raise ModelError(f"{name} must be a finite number >= 0, got {v!r}")
+        if self.newton not in ("full", "modified"):
+            raise ModelError(f"newton must be 'full' or 'modified', got {self.newton!r}")
         if self.scheme not in SCHEMES:
             raise ModelError(f"scheme must be one of {', '.join(map(repr, SCHEMES))}, got "
                              f"{self.scheme!r}")
@@ -171,6 +174,7 @@ class Stepper:
         self._A = None
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
+        self._kept = None  # factorization kept by modified Newton
         self._perm = None
         self._B = None
         self.polish = 0  # extra Newton updates after convergence (complex-step reference runs)
@@ -315,6 +319,8 @@ class Stepper:
         if ta is None:
             ta = self.time_arrays(t1)
         F = ta[3]
+        if s.newton == "modified" and coef is self.step_coef:
+            return self._modified_newton(z, qh, vh, t1, coef, R_hist, step, ta)
         for it in range(1, s.max_iter + 1):
             R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
             if not np.all(np.isfinite(R)):
@@ -357,6 +363,59 @@ class Stepper:
             f"position correction {err:.3g} of the model size (tol {s.tol:.1g}), residual norm "
             f"{np.linalg.norm(R):.3g}; dominant equations: {', '.join(self.dominant(R))}",
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
+
+    def _modified_newton(self, z, qh, vh, t1, coef, R_hist, step, ta):
+        """Newton with the factorization kept over iterations and steps (``newton="modified"``,
+        primal runs only): refactor when the contraction rate of the corrections exceeds 0.3
+        or they grow. Converged when the estimated remaining error ``err theta/(1 - theta)``
+        is below ``tol`` (first iteration with a kept matrix: ``err <= tol/100``), the usual
+        test of simplified Newton methods (Hairer & Wanner, Solving ODEs II, §IV.8)."""
+        s = self.settings
+        L = self.system.length_scale
+        hist = []
+        err_prev = None
+        for it in range(1, s.max_iter + 1):
+            R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
+            if not np.all(np.isfinite(R)):
+                bad = self.non_finite(R)
+                raise NonFiniteError(
+                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
+                    f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+            fresh = self._kept is None
+            if fresh:
+                try:
+                    self._kept = self.factor(z, qh, vh, t1, coef, F=ta[3])
+                except SingularMatrixError as err:
+                    err.step, err.residual = step, float(np.linalg.norm(R))
+                    err.dominant = self.dominant(R)
+                    raise
+            dz = self._kept.solve(-R)
+            err = coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
+            hist.append((float(np.linalg.norm(R)), err))
+            if not np.isfinite(err):
+                self._kept = None
+                continue
+            theta = err / err_prev if err_prev else None
+            if theta is not None and theta >= 1.0 and not fresh:
+                self._kept = None  # diverging with an old matrix: refactor and retry
+                err_prev = None
+                continue
+            z = z + dz
+            if theta is None:
+                done = err <= (s.tol if fresh else 1e-2 * s.tol)
+            else:
+                done = err * theta / max(1.0 - theta, 1e-12) <= s.tol
+            if done:
+                return z, self._kept, it, hist
+            if theta is not None and theta > 0.3:
+                self._kept = None
+            err_prev = err
+        R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
+        raise ConvergenceError(
+            f"modified Newton did not converge at t={t1:.6g} (step {step}) in {s.max_iter} "
+            f"iterations (residual norm {np.linalg.norm(R):.3g}); dominant equations: "
+            f"{', '.join(self.dominant(R))}", time=t1, step=step,
+            residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
     # ---- the two kinds of solve
     def substep_coefficients(self, h: float) -> StepCoefficients:
@@ -511,6 +570,9 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     runs need the same step sequence for every design); the results stay on the regular grid
     and ``result.step_reductions`` lists ``(t, n_substeps)`` of each retried step.
     """
+    if settings.newton == "modified" and observer is not None:
+        raise ModelError("newton='modified' cannot be combined with an observer: the "
+                         "sensitivities need the exact Newton matrix of every step")
     if max_halvings and observer is not None:
         raise ModelError("automatic step reduction cannot be combined with an observer "
                          "(sensitivity runs need one fixed step sequence)")
@@ -604,7 +666,8 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
              tol: float = 1e-10, max_iter: int = 12, stabilization: float = 0.5,
              stabilization_damping: float = 1.0, constraint_form: str = "paper",
              scheme: str = "arnold-bruls", progress: bool | Callable = False,
-             observer: Callable | None = None, max_halvings: int = 0, q0=None, v0=None):
+             observer: Callable | None = None, max_halvings: int = 0, q0=None, v0=None,
+             newton: str = "full"):
     """Simulate ``model`` from 0 to ``t_end`` with the generalized-alpha method.
 
     Parameters
@@ -619,6 +682,11 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
         Newton stops when the position correction is below ``tol`` times the model size.
     max_iter : int
         Newton iteration limit per step.
+    newton : {"full", "modified"}
+        ``"full"``: the exact Newton matrix is factored at every iteration (quadratic
+        convergence; what the sensitivities reuse). ``"modified"``: a factorization is kept
+        over iterations and steps while the corrections contract fast (a faster primal when
+        the matrix changes slowly; not for sensitivity runs).
     stabilization : float
         ``omega h`` of the Baumgarte term (0 switches it off).
     stabilization_damping : float
@@ -655,7 +723,7 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
     system = model if isinstance(model, System) else compile_model(model)
     settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
                         stabilization=stabilization, stabilization_damping=stabilization_damping,
-                        constraint_form=constraint_form, scheme=scheme)
+                        constraint_form=constraint_form, scheme=scheme, newton=newton)
     for name, x in (("q0", q0), ("v0", v0)):
         if x is not None and (np.shape(x) != (system.n_dof,) or not np.all(np.isfinite(x))):
             raise ModelError(f"{name} must be a finite array of shape ({system.n_dof},), got "
