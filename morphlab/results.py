@@ -52,6 +52,7 @@ class Result:
     newton_history: list = field(default_factory=list, repr=False)
     scale: float = 1.0
     step_reductions: list = field(default_factory=list)
+    energy_cache: dict | None = field(default=None, repr=False, compare=False)
 
     # ---- coordinates by name
     @property
@@ -146,8 +147,10 @@ class Result:
         """Energy balance over time: ``kinetic``, ``strain``, ``gravity`` (potential),
         ``damping`` (dissipated), ``work`` (of applied forces and torques), and ``total`` =
         kinetic + strain + gravity; each (n_t,). For a conservative system ``total - work``
-        is constant."""
-        return energy(self)
+        is constant (computed once, on first access)."""
+        if self.energy_cache is None:
+            self.energy_cache = energy(self)
+        return self.energy_cache
 
     def summary(self) -> str:
         """One paragraph with the run's statistics."""
@@ -162,7 +165,8 @@ class Result:
 def energy(res: Result) -> dict:
     """Kinetic, strain and gravitational energy, damping dissipation and external work."""
     from .kernels.assemble import add_residual
-    from .solver import kernel_arrays
+    from .kernels.joints import load_residual
+    from .solver import kernel_arrays, time_table
 
     s = res.system
     S = kernel_arrays(s)
@@ -175,9 +179,10 @@ def energy(res: Result) -> dict:
     power_ext = np.zeros(n_t)
     power_damp = np.zeros(n_t)
     ed = s.elem_dofs
+    table = time_table(s, res.t) if n_t else ()
     for i in range(n_t):
         q, v = res.q[i], res.v[i]
-        c, cd, cdd, F, T = (np.ascontiguousarray(x, dtype=s.dtype) for x in s.time_arrays(res.t[i]))
+        c, cd, cdd, F, T = (x[i] for x in table)
         # M v through the inertia term of the residual kernel (weights 1, 0)
         R = np.zeros(n, dtype=s.dtype)
         zero = np.zeros(n_dof, dtype=s.dtype)
@@ -192,8 +197,6 @@ def energy(res: Result) -> dict:
         power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
         # external power: -Q_ext . v from the load kernel alone
         Rl = np.zeros(n, dtype=s.dtype)
-        from .kernels.joints import load_residual
-
         load_residual(q, 1.0, F, s.load_dofs, np.ascontiguousarray(s.load_u0), T, s.torque_dofs,
                       Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
