@@ -423,7 +423,7 @@ def save(result, path) -> None:
     # ---- result fields
     res_meta = {}
     for f in dataclasses.fields(result):
-        if f.name in ("system", "settings"):
+        if f.name in ("system", "settings", "energy_cache"):  # energy_cache: derived data
             continue
         val = getattr(result, f.name)
         if f.name == "newton_history":
