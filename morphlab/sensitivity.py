@@ -357,13 +357,23 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
     out = np.zeros((n_x, sys0.n), dtype=dt_)
     zero_con = np.zeros((n_con, n_x))
     zero_w = np.zeros(5)
+    coef_arrays: dict = {}  # per StepCoefficients object: (pc, w_old, w_new) as arrays
+
+    def arrays_of(coef):
+        key = id(coef)
+        if key not in coef_arrays:
+            coef_arrays[key] = (
+                np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh)),
+                np.asarray(coef.old if coef.old is not None else zero_w, dtype=np.float64),
+                np.asarray(coef.new, dtype=np.float64), coef)  # keep coef alive: id stays valid
+        return coef_arrays[key][:3]
 
     def pseudo_loads(info: StepInfo):
         """D R (n, n_x): directional derivative of the step residual for each variable."""
         stp = info.stepper
         coef = info.coef
         n = info.n
-        pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
+        pc, w_old, w_new = arrays_of(coef)
         if info.prev is None:
             st = info.state
             zero = np.zeros_like(st.a)
@@ -375,12 +385,10 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
                     D["a"][n - 1], D["g"][n - 1], D["lam"][n - 1], table_at(TAB, n - 1),
                     table_at(TAB, n))
         q, v, a, g, lam, dq, dv, da, dg, dlam, ta_old, ta_new = args
-        has_old = coef.old is not None
-        pseudo_residuals(stp.S, P, q.astype(dt_), v.astype(dt_), a.astype(dt_), g.astype(dt_),
-                         lam.astype(dt_), dq, dv, da, dg, dlam, pert, pc, has_old,
-                         np.asarray(coef.old if has_old else zero_w, dtype=np.float64),
-                         np.asarray(coef.new, dtype=np.float64), info.z, stp.scale, stp.b0,
-                         stp.b1, ta_old, ta_new, n_dof, out)
+        # real state arrays: the kernel forms s_n + pert ds_n in the perturbation's dtype
+        pseudo_residuals(stp.S, P, q, v, a, g, lam, dq, dv, da, dg, dlam, pert, pc,
+                         coef.old is not None, w_old, w_new, info.z, stp.scale, stp.b0, stp.b1,
+                         ta_old, ta_new, n_dof, out)
         if complex_mode:
             return np.imag(out).T / CS_STEP
         # forward difference: subtract the nominal residual at the same point
