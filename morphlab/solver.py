@@ -322,12 +322,7 @@ class Stepper:
         if s.newton == "modified" and coef is self.step_coef:
             return self._modified_newton(z, qh, vh, t1, coef, R_hist, step, ta)
         for it in range(1, s.max_iter + 1):
-            R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
-            if not np.all(np.isfinite(R)):
-                bad = self.non_finite(R)
-                raise NonFiniteError(
-                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
-                    f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+            R = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
             try:
                 lu = self.factor(z, qh, vh, t1, coef, F=F)
             except SingularMatrixError as err:
@@ -364,6 +359,16 @@ class Stepper:
             f"{np.linalg.norm(R):.3g}; dominant equations: {', '.join(self.dominant(R))}",
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
+    def _finite_residual(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
+        """The step residual; a NaN or Inf raises :class:`NonFiniteError` naming where."""
+        R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
+        if not np.all(np.isfinite(R)):
+            bad = self.non_finite(R)
+            raise NonFiniteError(
+                f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
+                f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+        return R
+
     def _modified_newton(self, z, qh, vh, t1, coef, R_hist, step, ta):
         """Newton with the factorization kept over iterations and steps (``newton="modified"``,
         primal runs only): refactor when the contraction rate of the corrections exceeds 0.3
@@ -375,12 +380,7 @@ class Stepper:
         hist = []
         err_prev = None
         for it in range(1, s.max_iter + 1):
-            R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
-            if not np.all(np.isfinite(R)):
-                bad = self.non_finite(R)
-                raise NonFiniteError(
-                    f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
-                    f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+            R = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
             fresh = self._kept is None
             if fresh:
                 try:
