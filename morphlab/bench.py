@@ -328,15 +328,18 @@ def table(results: dict) -> str:
     x = results["cases"].get("exudyn")
     if x and "rows" in x:
         lines += ["### Side by side with Exudyn (flexible pendulum, same elements and steps)", "",
-                  "| elements | morphlab per step [µs] | Exudyn default [µs] | Exudyn full Newton "
-                  "[µs] | morphlab direct [s] | Exudyn FD [s] | Exudyn FD / morphlab direct |",
-                  "|---|---|---|---|---|---|---|"]
+                  "| elements | morphlab full Newton [µs/step] | Exudyn full Newton | morphlab "
+                  "modified Newton | Exudyn default (modified) | morphlab direct [s] | "
+                  "Exudyn FD [s] | Exudyn FD / morphlab direct |",
+                  "|---|---|---|---|---|---|---|---|"]
         for r in x["rows"]:
             p, s = r["primal"], r["sensitivities"]["timing_s"]
+            mod = p.get("morphlab_modified_newton")
+            mod_s = f"{1e6 * mod['per_step_s']['median']:.0f}" if mod else "-"
             lines.append(
                 f"| {r['n_elements']} | {1e6 * p['morphlab']['per_step_s']['median']:.0f} | "
+                f"{1e6 * p['exudyn_full_newton']['per_step_s']['median']:.0f} | {mod_s} | "
                 f"{1e6 * p['exudyn_modified_newton']['per_step_s']['median']:.0f} | "
-                f"{1e6 * p['exudyn_full_newton']['per_step_s']['median']:.0f} | "
                 f"{s['morphlab_direct']['median']:.3f} | "
                 f"{s['exudyn_forward_difference']['median']:.3f} | "
                 f"{r['sensitivities']['ratios']['exudyn_fd_over_morphlab_direct']:.2f} |")
