@@ -15,15 +15,12 @@ constraints, an inconsistent initial configuration) is checked by ``compile_mode
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import ModelError
 from .profiles import Constant, Profile, as_profile
-
-_counter = itertools.count()
 
 
 def _real(x):

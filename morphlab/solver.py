@@ -196,44 +196,37 @@ class Stepper:
         """Newmark predictors ``(q_hat, v_hat)`` with ``q = q_hat + bh2 a``."""
         return newmark_predict(coef, st.q, st.v, st.a, st.g)
 
-    def history(self, st: State, coef: StepCoefficients, system=None, system_S=None,
-                dtype=None, ta=None):
-        """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step).
-
-        ``system``/``system_S``: evaluate with another compiled system of the same layout (a
-        perturbed design, for the sensitivity pseudo-loads); ``ta``: its time arrays at
-        ``st.t`` when already known."""
-        S = self.S if system_S is None else system_S
-        dt = self.dtype if dtype is None else dtype
-        R = np.zeros(self.n, dtype=dt)
+    def history(self, st: State, coef: StepCoefficients, ta=None):
+        """The old-level share ``E(s_n; alpha...)`` of the residual (constant in a step; zero
+        for schemes without one); ``ta``: the time arrays at ``st.t`` when already known."""
+        R = np.zeros(self.n, dtype=self.dtype)
         if coef.old is None:
             return R
-        c, cd, cdd, F, T = ta if ta is not None else self.time_arrays(st.t, dt, system)
+        c, cd, cdd, F, T = ta if ta is not None else self.time_arrays(st.t)
         wm, wl, wf, wcm, wcf = coef.old
-        add_residual(S, st.q.astype(dt), st.v.astype(dt), st.a.astype(dt), st.lam.astype(dt),
-                     wm, wl, wf, wcm, wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T,
-                     self.n_dof, R)
+        add_residual(self.S, st.q, st.v, st.a, st.lam, wm, wl, wf, wcm, wcf, self.scale,
+                     self.b0, self.b1, c, cd, cdd, F, T, self.n_dof, R)
         return R
 
-    def time_arrays(self, t, dtype=None, system=None):
-        sysm = self.system if system is None else system
-        dt = self.dtype if dtype is None else dtype
-        return tuple(np.ascontiguousarray(x, dtype=dt) for x in sysm.time_arrays(t))
+    def time_arrays(self, t):
+        """The system's time-dependent arrays at ``t`` in the run's dtype."""
+        return tuple(np.ascontiguousarray(x, dtype=self.dtype)
+                     for x in self.system.time_arrays(t))
 
-    def residual(self, z, qh, vh, t1, coef: StepCoefficients, R_hist, system_S=None,
-                 time_arrays=None):
+    def residual(self, z, qh, vh, t1, coef: StepCoefficients, R_hist, time_arrays=None):
         """Residual of the step at ``z = (a, lam/scale)`` (n,)."""
-        S = self.S if system_S is None else system_S
         dt = np.result_type(z.dtype, qh.dtype, R_hist.dtype)
         a = z[: self.n_dof]
         lam = z[self.n_dof:] * self.scale
         q = qh + coef.bh2 * a
         v = vh + coef.gh * a
-        c, cd, cdd, F, T = time_arrays if time_arrays is not None else self.time_arrays(t1, dt)
+        c, cd, cdd, F, T = time_arrays if time_arrays is not None else self.time_arrays(t1)
         R = R_hist.astype(dt, copy=True)
         wm, wl, wf, wcm, wcf = coef.new
-        add_residual(S, q.astype(dt), v.astype(dt), a.astype(dt), lam.astype(dt), wm, wl, wf, wcm,
-                     wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T, self.n_dof, R)
+        # copy=False: no copies in the Newton loop when the dtypes already agree
+        add_residual(self.S, q.astype(dt, copy=False), v.astype(dt, copy=False),
+                     np.ascontiguousarray(a, dtype=dt), lam.astype(dt, copy=False), wm, wl, wf,
+                     wcm, wcf, self.scale, self.b0, self.b1, c, cd, cdd, F, T, self.n_dof, R)
         return R
 
     def _fill(self, z, qh, vh, t1, coef, scale=None, F=None):
