@@ -19,7 +19,7 @@ Joints: revolute A (ground–crank), revolute B (crank–link_C) and weld B (cra
 C (link_C–skin), revolute D (arm–link_E), revolute E (link_E–skin). Moving A (design variables
 ``x_A``, ``y_A``) changes the crank only (it spans A -> B, B stays).
 
-Mechanism (how the numbers were found: :func:`design_report` reproduces them)
+Mechanism (how the numbers were found; the tools are in :mod:`morphlab.morphing_design`)
 -------------------------------------------------------------------------------
 The skin's frame is held by the clamp at F, so in linear FFRF the skin is a *linear* elastic
 structure: its morphed shape is ``X + G f`` for the two link forces ``f`` at C and E (G: the
@@ -85,19 +85,17 @@ from functools import lru_cache
 import numpy as np
 
 from . import airfoil
-from .errors import ModelError, SolverError
+from .errors import ModelError
 from .model import Model
 from .profiles import Custom, SmoothStep
 from .responses import distance, ks_abs, max_by_real, rms
-from .statics import static
 
 __all__ = [
     "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
     "LINK_SECTION_MM2", "DESIGN_DELTA", "DAMPING_S", "T_RAMP_S", "RHO_KS", "STATIC_STEPS",
     "DEFAULTS", "GEOMETRY", "SETTINGS", "build", "undeformed", "target", "shape_errors",
     "rms_error", "max_error", "ks_max_stress", "RESPONSES", "mechanism_clearance",
-    "skin_compliance", "fit_link_forces", "inverse_mechanism", "torque_angle_curve",
-    "design_report", "study", "PAPER", "UNITS",
+    "study", "PAPER", "UNITS",
 ]
 
 #: Span of the planar wing section [mm] (the skin's out-of-plane width).
@@ -389,229 +387,6 @@ def mechanism_clearance(result, p: dict | None = None, *, tip_fraction: float = 
             hit = _crosses(P, S[node], S[:-1][keep], S[1:][keep])
             crossings += int(np.sum(hit))
     return {"joints": joints, "links": links, "crossings": crossings}
-
-
-# ------------------------------------------------------------------------------------- design
-def _skin_only(nodes, t_w, E) -> Model:
-    m = Model(name="skin")
-    skin = m.add_beam(nodes, E=E, rho=RHO_AL, thickness=t_w, width=SPAN_MM, name="skin")
-    m.add_fix(skin, at=nodes[0], dofs="xyr", name="F")
-    m.add_fix(skin, at=nodes[-1], dofs="yr", name="G")
-    return m
-
-
-def skin_compliance(nodes_index=None, *, t_w: float = 2.0, E: float = E_AL,
-                    n_elements: int = N_ELEMENTS):
-    """Linear response of the skin alone (F clamped, G sliding) to unit nodal forces.
-
-    Parameters
-    ----------
-    nodes_index : sequence of int, optional
-        Skin nodes that carry a force (default: all).
-    t_w, E : float
-        Wall thickness [mm] and Young's modulus [MPa].
-    n_elements : int
-        Skin elements.
-
-    Returns
-    -------
-    G : ndarray, shape (n_nodes, 2, n_loaded, 2)
-        ``G[k, :, j, c]``: displacement of node k [mm] per newton of force in direction c
-        (0: x, 1: y) at loaded node j.
-    S : ndarray, shape (n_elements, 2, 2, n_loaded, 2)
-        Stress [MPa] per newton, layout of :meth:`morphlab.Result.stress`.
-
-    Notes
-    -----
-    One :func:`morphlab.static` solve per unit load. With F clamped the skin's frame does not
-    move, so linear FFRF is exactly linear here and superposition holds.
-    """
-    X = _nodes(_check_elements(n_elements), DROOP_MM)[0]
-    idx = range(X.shape[0]) if nodes_index is None else list(nodes_index)
-    G = np.zeros((X.shape[0], 2, len(idx), 2))
-    S = np.zeros((n_elements, 2, 2, len(idx), 2))
-    for j, node in enumerate(idx):
-        for c in range(2):
-            m = _skin_only(X, t_w, E)
-            m.add_force("skin", at=X[node], force=(1.0 - c, float(c)), name="unit")
-            r = static(m, t=1.0)
-            G[:, :, j, c] = r.node_positions("skin")[-1] - X
-            S[..., j, c] = r.stress("skin")[-1]
-    return G, S
-
-
-def fit_link_forces(c_node: int = C_NODE, e_node: int = E_NODE, *, t_w: float = 2.0,
-                    E: float = E_AL, ridge: float = 1e-8) -> dict:
-    """Two nodal forces (at C and E) whose linear response best matches the target shape.
-
-    Minimises ``sum_k |X_k + u_k(f) - T_k|² + ridge |f|²`` over the four force components
-    ``f`` (ridge [mm²/N²] keeps away from solutions that stretch the skin axially with forces
-    of hundreds of kN, which no torque of 10 N·m could supply).
-
-    Returns
-    -------
-    dict
-        ``force_C``, ``force_E`` (2,) [N] on the skin; ``nodes`` (31, 2) the predicted morphed
-        nodes [mm]; ``rms``, ``max`` shape errors [mm]; ``max_stress`` [MPa].
-    """
-    X, T = _nodes(N_ELEMENTS, DROOP_MM)
-    G, S = skin_compliance([c_node, e_node], t_w=t_w, E=E)
-    cols = G.reshape(2 * X.shape[0], 4)
-    lhs = np.vstack([cols, np.sqrt(ridge) * np.eye(4)])
-    rhs = np.concatenate([(T - X).ravel(), np.zeros(4)])
-    f = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-    nodes = X + (cols @ f).reshape(-1, 2)
-    e = np.sqrt(np.sum((nodes - T) ** 2, axis=1))
-    sig = S.reshape(-1, 4) @ f
-    return {"c_node": c_node, "e_node": e_node, "force_C": f[:2], "force_E": f[2:],
-            "nodes": nodes, "rms": float(np.sqrt(np.mean(e * e))), "max": float(e.max()),
-            "max_stress": float(np.max(np.abs(sig)))}
-
-
-def _rot(a: float) -> np.ndarray:
-    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-
-
-def inverse_mechanism(fit: dict, x_A: float, delta: float, M_t: float = DEFAULTS["M_t"]) -> dict:
-    """Bell crank whose equilibrium at the torque ``M_t`` is the fitted skin shape.
-
-    Parameters
-    ----------
-    fit : dict
-        Output of :func:`fit_link_forces`.
-    x_A : float
-        x of the pivot A [mm]; y_A follows from the crank's moment balance.
-    delta : float
-        Crank rotation from the undeformed to the morphed state [rad] (counter-clockwise,
-        the sense of a positive torque).
-    M_t : float
-        Torque [N·mm].
-
-    Returns
-    -------
-    dict
-        ``A``, ``B``, ``D`` (2,) undeformed positions [mm]; ``L_C``, ``L_E`` link lengths [mm]
-        (negative: no mechanism with links inside the skin for this ``x_A``, ``delta``).
-
-    Notes
-    -----
-    In the morphed state the two-force links lie along the skin forces ``F_C``, ``F_E``; the
-    crank's moment balance about A, ``(C' - A) x F_C + (E' - A) x F_E = M_t`` (primes: morphed
-    positions; the links' own lengths drop out), is a line for A. A link from the crank point
-    P to skin node Q with morphed direction ``e`` (pointing out of the skin) has
-    ``P' = Q' - L e``; rotating the crank back, ``P = A + R(-delta)(P' - A)``, and asking for
-    ``|Q - P| = L`` gives ``|g|² + 2 L g.m = 0`` with ``g = Q - A - R(-delta)(Q' - A)``,
-    ``m = R(-delta) e``: one linear equation for L.
-    """
-    X = _nodes(N_ELEMENTS, DROOP_MM)[0]
-    Xf = fit["nodes"]
-    c, e = fit["c_node"], fit["e_node"]
-    FC, FE = fit["force_C"], fit["force_E"]
-    Ft = FC + FE
-    kappa = (Xf[c, 0] * FC[1] - Xf[c, 1] * FC[0] + Xf[e, 0] * FE[1] - Xf[e, 1] * FE[0]) - M_t
-    A = np.array([x_A, (x_A * Ft[1] - kappa) / Ft[0]])
-    R = _rot(-delta)
-    out = {"A": A}
-    for name, node, F in (("B", c, FC), ("D", e, FE)):
-        t = X[node + 1] - X[node - 1]
-        outward = np.array([t[1], -t[0]])
-        e_dir = F / np.sqrt(F @ F)
-        if e_dir @ outward < 0:
-            e_dir = -e_dir
-        g = X[node] - A - R @ (Xf[node] - A)
-        m_dir = R @ e_dir
-        L = -(g @ g) / (2.0 * (g @ m_dir))
-        out[name] = X[node] - g - L * m_dir
-        out["L_" + ("C" if name == "B" else "E")] = float(L)
-    return out
-
-
-def torque_angle_curve(p: dict | None = None, delta_max: float = 0.8, steps: int = 32, *,
-                       nodes: tuple[int, int] = (C_NODE, E_NODE)):
-    """Static torque needed to hold the crank at each angle up to ``delta_max`` [rad].
-
-    Returns ``(delta (steps + 1,), M (steps + 1,) [N·mm], result)``; the crank angle is
-    prescribed by a drive and ``M`` is minus its multiplier. The mechanism follows a growing
-    torque without snapping only where ``M`` rises. ``nodes``: C and E (30-element mesh).
-    """
-    r = static(_assemble(p, N_ELEMENTS, drive=True, nodes=nodes), t=delta_max, steps=steps)
-    i = r.system.con_names.index("drive.r")
-    return r.t, -np.real(r.lam[:, i]), r
-
-
-def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 103.0, 104.0),
-                  deltas=(0.6, 0.65, 0.7), *, min_joint_clearance: float = 5.0,
-                  min_arm: float = 8.0, min_link: float = 20.0, min_slope: float = 0.4,
-                  verbose: bool = False) -> dict:
-    """Reproduce the mechanism design (module docstring, steps 1–3).
-
-    Parameters
-    ----------
-    pairs : sequence of (int, int)
-        (C node, E node) pairs. The full scan behind the defaults used
-        ``[(c, e) for c in range(3, 8) for e in range(21, 25)]``.
-    x_A_values : sequence of float
-        Pivot x positions [mm] (full scan: 80 ... 125 step 1).
-    deltas : sequence of float
-        Crank rotations [rad] (full scan: 0.4 ... 1.2 step 0.05).
-    min_joint_clearance, min_arm, min_link : float
-        Acceptance limits [mm]: A, B, D inside the skin by this much at all times; crank arms
-        |AB|, |AD| and links at least this long.
-    min_slope : float
-        Acceptance limit on the weakest slope of the torque path up to the design angle,
-        relative to its mean slope ``M_t / delta`` (margin against snap-through).
-    verbose : bool
-        Print every accepted candidate.
-
-    Returns
-    -------
-    dict
-        ``"best"``: the accepted candidate with the largest ``overload`` (the torque, in units
-        of ``M_t``, that turns the crank 30 % beyond its design angle: the design whose shape
-        moves least under an overload), or None; ``"candidates"``: all accepted ones. A
-        candidate holds the rounded design ``p`` (0.01 mm), the fit, link lengths, arms,
-        clearances and slopes.
-    """
-    accepted = []
-    M_t = DEFAULTS["M_t"]
-    n_path = 39  # 30 steps up to delta, 9 beyond (to 1.3 delta)
-    for c, e in pairs:
-        fit = fit_link_forces(c, e)
-        for x_A in x_A_values:
-            for delta in deltas:
-                mech = inverse_mechanism(fit, x_A, delta, M_t)
-                A, B, D = mech["A"], mech["B"], mech["D"]
-                arm_B = float(np.sqrt(np.sum((B - A) ** 2)))
-                arm_D = float(np.sqrt(np.sum((D - A) ** 2)))
-                if min(mech["L_C"], mech["L_E"]) < min_link or min(arm_B, arm_D) < min_arm:
-                    continue
-                p = {"x_A": round(float(A[0]), 2), "y_A": round(float(A[1]), 2),
-                     "x_B": round(float(B[0]), 2), "y_B": round(float(B[1]), 2),
-                     "x_D": round(float(D[0]), 2), "y_D": round(float(D[1]), 2)}
-                try:
-                    delta_k, M, res = torque_angle_curve(p, 1.3 * delta, n_path, nodes=(c, e))
-                except SolverError:  # no static path: rejected
-                    continue
-                slope = np.diff(M[:31]) / np.diff(delta_k[:31]) / (M_t / delta)
-                if slope.min() < min_slope or np.any(np.diff(M) <= 0.0):
-                    continue
-                clear = mechanism_clearance(res, p, nodes=(c, e))
-                if clear["joints"] < min_joint_clearance or clear["crossings"] or \
-                        clear["links"] <= 0.0:
-                    continue
-                cand = {"c_node": c, "e_node": e, "x_A": float(x_A), "delta": float(delta),
-                        "p": p, "fit_rms": fit["rms"], "fit_max": fit["max"],
-                        "fit_stress": fit["max_stress"], "L_C": mech["L_C"],
-                        "L_E": mech["L_E"], "arm_B": arm_B, "arm_D": arm_D,
-                        "min_slope": float(slope.min()), "torque_at_delta": float(M[30]),
-                        "overload": float(M[-1] / M_t),
-                        **{f"clear_{k}": v for k, v in clear.items()}}
-                accepted.append(cand)
-                if verbose:
-                    print({k: (round(v, 3) if isinstance(v, float) else v)
-                           for k, v in cand.items()})
-    best = max(accepted, key=lambda c: c["overload"]) if accepted else None
-    return {"best": best, "candidates": accepted}
 
 
 # -------------------------------------------------------------------------------------- study

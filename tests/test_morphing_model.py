@@ -14,6 +14,7 @@ import pytest
 
 import morphlab as ml
 from morphlab import morphing as mo
+from morphlab import morphing_design as md
 
 
 @pytest.fixture(scope="module")
@@ -184,9 +185,9 @@ def test_design_equilibrium_is_the_linear_prediction():
     # independent reference: the skin's linear compliance (unit-load static solves of the skin
     # alone) and the crank's moment balance by hand; the multibody statics must land on the
     # predicted shape at exactly the designed crank angle and torque
-    fit = mo.fit_link_forces(mo.C_NODE, mo.E_NODE)
-    best = mo.design_report(x_A_values=(mo.DEFAULTS["x_A"],), deltas=(mo.DESIGN_DELTA,))
-    mech = mo.inverse_mechanism(fit, mo.DEFAULTS["x_A"], mo.DESIGN_DELTA)
+    fit = md.fit_link_forces(mo.C_NODE, mo.E_NODE)
+    best = md.design_report(x_A_values=(mo.DEFAULTS["x_A"],), deltas=(mo.DESIGN_DELTA,))
+    mech = md.inverse_mechanism(fit, mo.DEFAULTS["x_A"], mo.DESIGN_DELTA)
     p = {"x_A": mech["A"][0], "y_A": mech["A"][1], "x_B": mech["B"][0], "y_B": mech["B"][1],
          "x_D": mech["D"][0], "y_D": mech["D"][1]}
     r = ml.static(mo.build(p), t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS)
@@ -207,7 +208,7 @@ def test_design_equilibrium_is_the_linear_prediction():
 
 
 def test_torque_path_rises_to_the_design_torque():
-    delta, M, _ = mo.torque_angle_curve(None, mo.DESIGN_DELTA, 26)
+    delta, M, _ = md.torque_angle_curve(None, mo.DESIGN_DELTA, 26)
     # monotonic: the crank follows a growing torque without snapping through
     assert np.all(np.diff(M) > 0.0)
     # at the design angle the holding torque is M_t; rounding the geometry to 0.01 mm moves
