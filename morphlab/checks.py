@@ -1,0 +1,144 @@
+"""Checks of a compiled system: initial configuration on the constraints, and the rank of the
+constraint Jacobian (redundant or conflicting joints), with messages naming the joints."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import ModelError
+from .model import Beam
+
+
+def _joint_hint(system, joint_name: str) -> str:
+    """Where the joint sits relative to the nodes of the beams it connects (for messages)."""
+    joint = next((j for j in system.model.joints if j.name == joint_name), None)
+    if joint is None or getattr(joint, "at", None) is None:
+        return ""
+    sides = [getattr(joint, k) for k in ("a", "b", "body") if hasattr(joint, k)]
+    parts = []
+    for body in sides:
+        if isinstance(body, Beam):
+            k, dist = body.nearest_node(joint.at)
+            parts.append(f"its point is {dist:.3g} from node {k} of beam {body.name!r}")
+    return ("; " + "; ".join(parts)) if parts else ""
+
+
+def check_initial(system) -> None:
+    """The initial configuration must satisfy every constraint row (to 1e-9 of model size),
+    and the initial velocities the velocity-level rows."""
+    if system.n_con == 0:
+        return
+    phi, phid = system.constraint_violation(system.q0, system.v0, 0.0)
+    tol = 1e-9 * system.length_scale
+    bad = np.flatnonzero(np.abs(np.real(phi)) > tol)
+    if bad.size:
+        i = int(bad[np.argmax(np.abs(np.real(phi[bad])))])
+        joint = system.con_joint[i]
+        raise ModelError(
+            f"initial configuration violates constraint {system.con_names[i]!r} of joint "
+            f"{joint!r} by {abs(np.real(phi[i])):.6g} (tolerance {tol:.3g} = 1e-9 of the model "
+            f"size){_joint_hint(system, joint)}; place joints exactly at beam nodes and at "
+            "coinciding points of the bodies they connect"
+        )
+    vscale = max(float(np.max(np.abs(np.real(system.v0)))), 1e-300)
+    badv = np.flatnonzero(np.abs(np.real(phid)) > 1e-9 * vscale * max(1.0, system.length_scale))
+    if badv.size:
+        i = int(badv[np.argmax(np.abs(np.real(phid[badv])))])
+        raise ModelError(
+            f"initial velocities violate constraint {system.con_names[i]!r} of joint "
+            f"{system.con_joint[i]!r} at velocity level by {abs(np.real(phid[i])):.6g}; give "
+            "initial velocities consistent with the joints (a drive whose angle'(0) is not 0 "
+            "needs the matching initial angular velocity of the driven body)"
+        )
+
+
+# relative singular-value threshold of the rank test. The scaled Jacobian has O(1) entries built
+# from cos/sin of the initial angles, so an exactly dependent set of rows shows singular values
+# of round-off size (~1e-16); a mechanism whose constraint Jacobian is conditioned worse than
+# 1e10 cannot be solved to the Newton tolerance either, so it is reported as well.
+RANK_RTOL = 1e-10
+
+
+def constraint_rank(system, q=None):
+    """Numerical rank of the constraint Jacobian and the rows that are linearly dependent.
+
+    Parameters
+    ----------
+    system : System
+    q : (n_dof,), optional
+        Configuration (default: the initial one, ``system.q0``).
+
+    Returns
+    -------
+    rank : int
+        Numerical rank of ``J`` (n_con, n_dof).
+    dependent : (n_con,) float
+        Participation of every row in the null space of ``J^T``: the norm of the row's
+        components over an orthonormal basis of that null space, in [0, 1]. Rows with a value
+        above ~1e-6 belong to a redundant or conflicting set; 0 for all rows when ``J`` has full
+        row rank.
+    sigma : (min(n_con, n_used),) float
+        Singular values of the scaled Jacobian, largest first.
+
+    Notes
+    -----
+    ``J`` mixes lengths and angles: translation rows have entries 1 in ``R`` and ``u, v`` and
+    lengths (a lever arm) in ``theta``; rotation rows have entries 1 in ``theta`` and ``phi``.
+    The test uses ``D_r J D_c`` with ``D_c = 1/L`` on rotational columns and ``D_r = L`` on
+    rotation rows (``L = system.length_scale``), so every entry is O(1) whatever the units, and
+    counts singular values above ``RANK_RTOL`` times the largest (Golub & Van Loan, *Matrix
+    Computations*, sec. 5.4.1, numerical rank by the SVD). Only the real part is used (a
+    complex-step perturbation does not change the topology). The left singular vectors of the
+    zero singular values span the null space of ``J^T``: the combinations of rows that repeat
+    (or, with a different right-hand side, contradict) each other.
+    """
+    n_con = system.n_con
+    if n_con == 0:
+        return 0, np.zeros(0), np.zeros(0)
+    q = np.real(system.q0 if q is None else np.asarray(q))
+    J = np.real(system.constraint_matrix(q.astype(float)))
+    L = system.length_scale
+    rot = np.zeros(system.n_dof, dtype=bool)
+    for info in system.bodies.values():
+        rot[info.ref[2]] = True
+        if info.node_dofs is not None:
+            nd = info.node_dofs[:, 2]
+            rot[nd[nd >= 0]] = True
+    col = np.where(rot, 1.0 / L, 1.0)
+    row = np.where(system.con_kind == 2, L, 1.0)
+    Js = row[:, None] * J * col[None, :]
+    used = np.flatnonzero(np.any(Js != 0.0, axis=0))
+    if used.size == 0:
+        return 0, np.ones(n_con), np.zeros(0)
+    U, sigma, _ = np.linalg.svd(Js[:, used], full_matrices=True)
+    rank = int(np.sum(sigma > RANK_RTOL * sigma[0])) if sigma[0] > 0 else 0
+    null = U[:, rank:]
+    return rank, np.sqrt(np.sum(null * null, axis=1)), sigma
+
+
+def check_rank(system) -> None:
+    """Redundant or conflicting constraints: a rank-deficient Jacobian at ``q0``.
+
+    A singular constraint Jacobian makes the saddle-point matrix singular (the multipliers of
+    the dependent rows are not determined), whether the rows repeat each other (a Fix and a
+    Drive on the same rotation, two revolutes at one point, a closed loop that is over-
+    constrained in the plane) or the mechanism starts at a dead point.
+    """
+    rank, dep, _ = constraint_rank(system)
+    n_con = system.n_con
+    if rank == n_con:
+        return
+    rows = np.flatnonzero(dep > 1e-6)
+    rows = rows[np.argsort(-dep[rows], kind="stable")]
+    names = [system.con_names[i] for i in rows]
+    joints = list(dict.fromkeys(system.con_joint[i] for i in rows))
+    shown = ", ".join(repr(n) for n in names[:12]) + (", ..." if len(names) > 12 else "")
+    raise ModelError(
+        f"model {system.model.name!r}: redundant or conflicting constraints at the initial "
+        f"configuration: the constraint Jacobian has rank {rank} for {n_con} rows, so "
+        f"{n_con - rank} row(s) repeat the others. Linearly dependent rows: {shown} (joints "
+        f"{', '.join(repr(j) for j in joints)}). Remove the extra constraint (for example a Fix "
+        "'r' and a Drive on the same rotation, two joints at the same point, a fix with more "
+        "letters than needed), or move the mechanism out of a dead-point (singular) initial "
+        "position."
+    )
