@@ -22,8 +22,9 @@ from .model import Beam, Model, RigidBody
 from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
 from .results import Result
 from .sensitivity import SensitivityResult, sensitivities
-from .solver import Settings, State, simulate
+from .solver import Settings, State
 from .statics import static
+from .timeloop import simulate
 from .warmup import warmup
 
 __version__ = "0.1.0"

@@ -397,7 +397,7 @@ def save(result, path) -> None:
     Parameters
     ----------
     result : Result
-        From :func:`~morphlab.solver.simulate` or :func:`~morphlab.statics.static` (also the
+        From :func:`~morphlab.timeloop.simulate` or :func:`~morphlab.statics.static` (also the
         partial ``error.result`` of a failed run).
     path : str or os.PathLike
         Destination, used as given (``.npz`` is customary).

@@ -42,14 +42,8 @@ from .errors import SensitivityError
 from .integrator import newmark_predict, newmark_update
 from .kernels.assemble import PERTURBED, pseudo_residuals
 from .results import Result
-from .solver import (
-    Settings,
-    StepInfo,
-    integrate,
-    kernel_arrays,
-    table_at,
-    time_table,
-)
+from .solver import Settings, kernel_arrays, table_at, time_table
+from .timeloop import StepInfo, integrate
 
 # Refine the direct solve against the exact converged matrix only when the last Newton
 # correction (relative to the model size) exceeds this: below it, the lagged LU's relative

@@ -91,7 +91,7 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     timing_s: dict = {}
     if timing:
         from .compile import compile_model
-        from .solver import simulate
+        from .timeloop import simulate
 
         sys0 = compile_model(build(dict(p0)))
         timing_s["primal"], timing_s["primal_runs"] = _median_time(

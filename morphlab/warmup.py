@@ -32,8 +32,8 @@ def warmup() -> None:
     """Compile (or load from the cache) all kernels for float64 and complex128."""
     from .responses import point_displacement
     from .sensitivity import sensitivities
-    from .solver import simulate
     from .statics import static
+    from .timeloop import simulate
 
     p = {"x": 0.0, "E": 7.0e4}
     simulate(_tiny_build(p), t_end=0.002, dt=0.001)

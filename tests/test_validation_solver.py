@@ -214,7 +214,8 @@ def test_step_reduction_rescues_a_failing_step_and_reports_it():
 
 
 def test_step_reduction_is_refused_with_an_observer():
-    from morphlab.solver import Settings, integrate
+    from morphlab.solver import Settings
+    from morphlab.timeloop import integrate
 
     system = ml.compile_model(flexible_mechanism())
     with pytest.raises(ml.ModelError, match="step reduction"):
