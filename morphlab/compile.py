@@ -363,31 +363,21 @@ def compile_model(model: Model, dtype=None) -> System:
         con_joint.append(joint.name)
 
     ground_pt = (-np.ones(6, dtype=np.int64), np.zeros(2, dtype=dt), 0.0)
-    def snapped(j, *sides):
-        """The joint point: a beam node if a side is a beam (add-time validation accepted
-        ``at`` within a tolerance of it), so every side of the joint sees one point."""
-        for b in sides:
-            if isinstance(b, Beam):
-                return b.nodes[b.nearest_node(j.at)[0]]
-        return j.at
-
     for j in model.joints:
         if isinstance(j, (Revolute, Weld)):
-            j_at = snapped(j, j.a, j.b)
-            pa, pb = point(j.a, j_at), point(j.b, j_at)
+            pa, pb = point(j.a, j.at), point(j.b, j.at)
             # ground sides contribute their fixed coordinate to c: g = r_P - r_Q
-            ca = np.asarray(j_at) if isinstance(j.a, Ground) else np.zeros(2)
-            cb = np.asarray(j_at) if isinstance(j.b, Ground) else np.zeros(2)
+            ca = np.asarray(j.at) if isinstance(j.a, Ground) else np.zeros(2)
+            cb = np.asarray(j.at) if isinstance(j.b, Ground) else np.zeros(2)
             add_row(0, j, "x", pa, pb, -ca[0] + cb[0])
             add_row(1, j, "y", pa, pb, -ca[1] + cb[1])
             if isinstance(j, Weld):
                 add_row(2, j, "r", pa, pb, pa[2] - pb[2])
         elif isinstance(j, Fix):
-            j_at = snapped(j, j.body)
-            pa = point(j.body, j_at)
+            pa = point(j.body, j.at)
             for lab in j.dofs:
                 kind = "xyr".index(lab)
-                c0 = pa[2] if kind == 2 else np.asarray(j_at)[kind]
+                c0 = pa[2] if kind == 2 else np.asarray(j.at)[kind]
                 add_row(kind, j, lab, pa, ground_pt, c0)
         elif isinstance(j, Drive):
             at = j.at if j.at is not None else (

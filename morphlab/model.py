@@ -452,7 +452,8 @@ class Model:
 
     def _check_point_on(self, body, at, what):
         """``at`` as a point; on a beam it must be a node (to 1e-6 of the beam's size, at least
-        1e-6 length units). Any point of the plane is a material point of a rigid body."""
+        1e-6 length units) and the node's exact coordinates are returned, so every side of a
+        joint sees one point. Any point of the plane is a material point of a rigid body."""
         at = _point(at, "at", what)
         if isinstance(body, Beam):
             k, dist = body.nearest_node(at)
@@ -466,6 +467,7 @@ class Model:
                     f"{dist:.6g} (tolerance {tol:.3g}). Joints and loads act at beam nodes: use "
                     "that node's coordinates or add a node there"
                 )
+            return body.nodes[k].copy()
         return at
 
     def add_revolute(self, a, b, *, at, name=None) -> Revolute:
