@@ -211,7 +211,8 @@ def case_variables(repeats: int, quick: bool) -> dict:
 # ---------------------------------------------------------------------------------------------
 _GROUPS = (
     ("assembly kernels", ("add_residual", "fill_matrix")),
-    ("pseudo-load kernel", ("pseudo_residuals",)),
+    ("sensitivity kernels (pseudo-loads, update, refinement residual)",
+     ("pseudo_loads", "update_sensitivities", "csc_residual")),
     ("factorization", ("gstrf",)),
     ("solves", ("'solve' of 'SuperLU'",)),
     ("sparse matrix construction", ("_compressed.py", "_csc.py", "_sputils.py", "_base.py")),

@@ -39,8 +39,7 @@ import numpy as np
 
 from .compile import System, compile_model
 from .errors import SensitivityError
-from .integrator import newmark_predict, newmark_update
-from .kernels.assemble import PERTURBED, pseudo_residuals
+from .kernels.direct import PERTURBED, csc_residual, pseudo_loads, update_sensitivities
 from .results import Result
 from .solver import Settings, kernel_arrays, table_at, time_table
 from .timeloop import StepInfo, integrate
@@ -311,10 +310,12 @@ def _solve(lu, b):
 
 
 def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress):
-    """Primal run with the direct-differentiation observer."""
+    """Primal run with the direct-differentiation observer (per step: one compiled call for
+    the pseudo-loads, one multi-right-hand-side solve, an optional refinement, one compiled
+    call for the Newmark update; :mod:`morphlab.kernels.direct`)."""
     n_x = len(names)
     n_steps = settings.n_steps
-    n_dof, n_con = sys0.n_dof, sys0.n_con
+    n_dof, n_con, n = sys0.n_dof, sys0.n_con, sys0.n
     times = settings.t_start + settings.h * np.arange(n_steps + 1)
     if method == "direct":
         psys = perturbed_cs
@@ -330,100 +331,75 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         pert = np.array([steps[v] for v in names])
     complex_mode = method == "direct"
     dt_ = np.complex128 if complex_mode else np.float64
-    # perturbed designs stacked for the batched pseudo-load kernel
+    # nominal arrays in the perturbation's dtype (integer tables shared); perturbed designs
+    # stacked for the batched kernel
+    S_nom = kernel_arrays(sys0, dt_)
     S_all = [kernel_arrays(s, dt_) for s in psys]
     P = tuple(np.ascontiguousarray(np.stack([Sk[k] for Sk in S_all])) for k in PERTURBED)
     shared: dict = {}
+    tab0 = time_table(sys0, times, dt_, cache=shared)
     tables = [time_table(s, times, dt_, cache=shared) for s in psys]
     TAB = tuple(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
                 for k in range(5))  # (n_t, n_x, ...)
-    if complex_mode:
-        dq0 = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
-        dv0 = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
-    else:
-        dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
-        dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
     shape = (n_steps + 1, n_dof, n_x)
     D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
          "g": np.zeros(shape), "lam": np.zeros((n_steps + 1, n_con, n_x))}
-    D["q"][0], D["v"][0] = dq0, dv0
+    if complex_mode:
+        D["q"][0] = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
+        D["v"][0] = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
+    else:
+        D["q"][0] = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
+        D["v"][0] = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
+    hist = (D["q"], D["v"], D["a"], D["g"], D["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
-    out = np.zeros((n_x, sys0.n), dtype=dt_)
-    zero_con = np.zeros((n_con, n_x))
-    zero_w = np.zeros(5)
-    coef_arrays: dict = {}  # per StepCoefficients object: (pc, w_old, w_new) as arrays
+    work = np.zeros((n_x + 1, n), dtype=dt_)
+    rhs = np.zeros((n, n_x))
+    r = np.zeros((n, n_x))
+    zero_dof = np.zeros(n_dof)
+    zero_con = np.zeros(n_con)
+    coef_arrays: dict = {}  # per StepCoefficients object: (pc, upd, w_old, w_new) as arrays
 
     def arrays_of(coef):
         key = id(coef)
         if key not in coef_arrays:
             coef_arrays[key] = (
                 np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh)),
-                np.asarray(coef.old if coef.old is not None else zero_w, dtype=np.float64),
+                np.array(coef.upd, dtype=np.float64),
+                np.asarray(coef.old if coef.old is not None else np.zeros(5), dtype=np.float64),
                 np.asarray(coef.new, dtype=np.float64), coef)  # keep coef alive: id stays valid
-        return coef_arrays[key][:3]
-
-    def pseudo_loads(info: StepInfo):
-        """D R (n, n_x): directional derivative of the step residual for each variable."""
-        stp = info.stepper
-        coef = info.coef
-        n = info.n
-        pc, w_old, w_new = arrays_of(coef)
-        if info.prev is None:
-            st = info.state
-            zero = np.zeros_like(st.a)
-            args = (st.q, st.v, zero, zero, st.lam * 0.0, D["q"][0], D["v"][0], D["a"][0],
-                    D["g"][0], zero_con, table_at(TAB, 0), table_at(TAB, 0))
-        else:
-            st = info.prev
-            args = (st.q, st.v, st.a, st.g, st.lam, D["q"][n - 1], D["v"][n - 1],
-                    D["a"][n - 1], D["g"][n - 1], D["lam"][n - 1], table_at(TAB, n - 1),
-                    table_at(TAB, n))
-        q, v, a, g, lam, dq, dv, da, dg, dlam, ta_old, ta_new = args
-        # real state arrays: the kernel forms s_n + pert ds_n in the perturbation's dtype
-        pseudo_residuals(stp.S, P, q, v, a, g, lam, dq, dv, da, dg, dlam, pert, pc,
-                         coef.old is not None, w_old, w_new, info.z, stp.scale, stp.b0, stp.b1,
-                         ta_old, ta_new, n_dof, out)
-        if complex_mode:
-            return np.imag(out).T / CS_STEP
-        # forward difference: subtract the nominal residual at the same point
-        R_hist = (np.zeros(stp.n) if info.prev is None else
-                  stp.history(info.prev, coef, ta=table_at(info.table, n - 1)))
-        R0 = stp.residual(info.z, info.qh, info.vh, info.state.t, coef, R_hist,
-                          time_arrays=table_at(info.table, n))
-        return (out.T - R0[:, None]) / pert[None, :]
+        return coef_arrays[key][:4]
 
     def observer(info: StepInfo):
         t0 = _time.perf_counter()
         stp = info.stepper
-        n = info.n
-        b = -pseudo_loads(info)
-        x = _solve(info.lu, b)
+        k = info.n
+        coef = info.coef
+        pc, upd, w_old, w_new = arrays_of(coef)
+        if info.prev is None:  # initial solve: the state at t_0, no old level
+            st = info.state
+            q, v, a, g, lam, k_old, k_new = st.q, st.v, zero_dof, zero_dof, zero_con, 0, 0
+        else:
+            st = info.prev
+            q, v, a, g, lam, k_old, k_new = st.q, st.v, st.a, st.g, st.lam, k - 1, k
+        pseudo_loads(S_nom, P, q, v, a, g, lam, *hist, k_old, pert, pc, coef.old is not None,
+                     w_old, w_new, info.z, stp.scale, stp.b0, stp.b1, table_at(TAB, k_old),
+                     table_at(TAB, k_new), table_at(tab0, k_old), table_at(tab0, k_new), n_dof,
+                     work, rhs)
+        x = _solve(info.lu, rhs)
         # The LU is one Newton iterate behind (taken at z_k, z* = z_k + dz): its relative error
         # is O(|dz|). When the last position correction exceeds REFINE_TOL of the model
         # size, refine against the exact matrix at z* (assembled, not factored).
         last = info.newton_history[-1][1] if info.newton_history else 0.0
         if refine and info.prev is not None and last > REFINE_TOL:
-            stp._fill(info.z, info.qh, info.vh, info.state.t, info.coef,
-                      F=table_at(info.table, n)[3])
-            Jx = stp.matrix()
+            stp._fill(info.z, info.qh, info.vh, info.state.t, coef,
+                      F=table_at(info.table, k)[3])
             for _ in range(refine):
-                r = b - Jx @ x
+                csc_residual(stp.data, sys0.indices, sys0.indptr, x, rhs, r)
                 x = x + _solve(info.lu, r)
+            rr, bb = csc_residual(stp.data, sys0.indices, sys0.indptr, x, rhs, r)
             stats["refined_steps"] += 1
-            stats["refinement_residual"].append(
-                float(np.linalg.norm(b - Jx @ x) / max(np.linalg.norm(b), 1e-300)))
-        da = x[:n_dof]
-        dlam = x[n_dof:] * stp.scale
-        if info.prev is None:
-            D["a"][0], D["g"][0], D["lam"][0] = da, da, dlam
-        else:
-            coef = info.coef
-            k = n - 1
-            dqh, dvh = newmark_predict(coef, D["q"][k], D["v"][k], D["a"][k], D["g"][k])
-            D["q"][n], D["v"][n], D["g"][n] = newmark_update(coef, dqh, dvh, da, D["a"][k],
-                                                             D["g"][k])
-            D["a"][n] = da
-            D["lam"][n] = dlam
+            stats["refinement_residual"].append(rr / max(bb, 1e-300))
+        update_sensitivities(*hist, k, x, stp.scale, n_dof, pc, upd)
         stats["sensitivity_time"] += _time.perf_counter() - t0
 
     t0 = _time.perf_counter()
