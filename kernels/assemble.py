@@ -12,6 +12,7 @@ load_dofs, load_u0, torque_dofs, border_off, border_map, elem_map, con_map_row, 
 con_map_H, load_map)
 """
 
+import numpy as np
 from numba import njit
 
 from .ffrf import body_jacobian, body_residual
@@ -25,11 +26,23 @@ def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cd
     Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext)``;
     constraint rows: ``scale (wcm J a - wcf F_c)`` (paper eq. 25–26 for one time level).
     """
+    parts = (np.arange(S[1].shape[0]), np.arange(S[10].shape[0]), np.arange(S[14].shape[0]),
+             np.arange(S[17].shape[0]), np.arange(S[19].shape[0]))
+    add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
+                       F, T, n_dof, R)
+
+
+@njit(cache=True)
+def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
+                       F, T, n_dof, R):
+    """:func:`add_residual` over the listed parts only: ``parts = (bodies, elements, constraint
+    rows, loads, torques)`` (int64 index arrays). The sensitivity pseudo-loads evaluate the parts
+    a design variable changes (``morphlab.kernels.direct``)."""
     body_residual(q, v, a, wm, wf, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7], S[8],
-                  S[10], S[11], S[12], S[13], R)
+                  S[9], S[10], S[11], S[12], S[13], parts[0], parts[1], R)
     constraint_residual(q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
-                        S[14], S[15], S[16], n_dof, R)
-    load_residual(q, wf, F, S[17], S[18], T, S[19], R)
+                        S[14], S[15], S[16], parts[2], n_dof, R)
+    load_residual(q, wf, F, S[17], S[18], T, S[19], parts[3], parts[4], R)
 
 
 @njit(cache=True)

@@ -34,14 +34,20 @@ from numba import njit
 
 
 @njit(cache=True)
-def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, full):
+def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
+                   elems, n_flex, full):
     """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
 
-    ``full=False`` (the residual) skips ``Mv`` and ``Sa``, which only the Jacobian needs.
+    ``full=False`` (the residual) forms ``Mq, Ma, Sq, Sv`` and the elastic plus damping force
+    ``Kd = K (q_f + beta_d q_f')`` (one product: ``beta_d`` is the body's); ``full=True`` (the
+    Jacobian, which takes ``K`` itself) forms ``Mq, Mv, Sq, Sv, Sa`` and no ``Kd``.
 
-    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv`` (each (n_flex + 1,)). Element DOFs
-    removed by a reference condition (``elem_fdof == -1``) read and write the extra slot
-    ``n_flex``, which holds zero coordinates, so the element loop has no branches.
+    Only the elements listed in ``elems`` contribute (all of them, except when a sensitivity
+    pseudo-load evaluates just the parts a design variable changes).
+
+    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd`` (each (n_flex + 1,); zeros where not
+    formed). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and write
+    the extra slot ``n_flex``, which holds zero coordinates, so the element loop has no branches.
     """
     dt = q.dtype
     m = n_flex + 1
@@ -58,52 +64,53 @@ def _flex_products(q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex
     Sq = np.zeros(m, dtype=dt)
     Sv = np.zeros(m, dtype=dt)
     Sa = np.zeros(m, dtype=dt)
-    Kq = np.zeros(m, dtype=dt)
-    Kv = np.zeros(m, dtype=dt)
+    Kd = np.zeros(m, dtype=dt)
     idx = np.empty(6, dtype=np.int64)
     ql = np.empty(6, dtype=dt)
     vl = np.empty(6, dtype=dt)
     al = np.empty(6, dtype=dt)
-    for e in range(elem_fdof.shape[0]):
+    dl = np.empty(6, dtype=dt)
+    for e in elems:
+        beta = body_damp[elem_body[e]]
         for i in range(6):
             f = elem_fdof[e, i]
             idx[i] = f if f >= 0 else n_flex
             ql[i] = qf[idx[i]]
             vl[i] = vf[idx[i]]
             al[i] = af[idx[i]]
+            dl[i] = ql[i] + beta * vl[i]
         Me = elem_M[e]
         Se = elem_St[e]
         Ke = elem_K[e]
         for i in range(6):
             mq = 0.0 * ql[0]
-            mv = 0.0 * ql[0]
-            ma = 0.0 * ql[0]
             sq = 0.0 * ql[0]
             sv = 0.0 * ql[0]
-            sa = 0.0 * ql[0]
-            kq = 0.0 * ql[0]
-            kv = 0.0 * ql[0]
             for j in range(6):
                 mq += Me[i, j] * ql[j]
-                ma += Me[i, j] * al[j]
                 sq += Se[i, j] * ql[j]
                 sv += Se[i, j] * vl[j]
-                kq += Ke[i, j] * ql[j]
-                kv += Ke[i, j] * vl[j]
+            k = idx[i]
+            Mq[k] += mq
+            Sq[k] += sq
+            Sv[k] += sv
             if full:
+                mv = 0.0 * ql[0]
+                sa = 0.0 * ql[0]
                 for j in range(6):
                     mv += Me[i, j] * vl[j]
                     sa += Se[i, j] * al[j]
-            k = idx[i]
-            Mq[k] += mq
-            Mv[k] += mv
-            Ma[k] += ma
-            Sq[k] += sq
-            Sv[k] += sv
-            Sa[k] += sa
-            Kq[k] += kq
-            Kv[k] += kv
-    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv
+                Mv[k] += mv
+                Sa[k] += sa
+            else:
+                ma = 0.0 * ql[0]
+                kd = 0.0 * ql[0]
+                for j in range(6):
+                    ma += Me[i, j] * al[j]
+                    kd += Ke[i, j] * dl[j]
+                Ma[k] += ma
+                Kd[k] += kd
+    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd
 
 
 @njit(cache=True)
@@ -144,9 +151,9 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
 def body_residual(
     q, v, a, wm, wf, gravity,
     body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
-    elem_fdof, elem_M, elem_St, elem_K, R,
+    elem_body, elem_fdof, elem_M, elem_St, elem_K, bodies, elems, R,
 ):
-    """Add every body's ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
+    """Add the bodies' ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
 
     Parameters
     ----------
@@ -156,16 +163,22 @@ def body_residual(
         Weights of the inertia term and of the force terms.
     gravity : (2,)
         Gravitational acceleration [length/time²].
+    bodies, elems : int64 arrays
+        The bodies and elements evaluated: all of them for the residual. A sensitivity
+        pseudo-load passes only those whose data a design variable changes; with a real state
+        the skipped parts carry no imaginary part (complex step) and cancel in a difference, so
+        the derivative is exact although the real part is not the residual's.
     R : (>= n_dof,), in/out
         Residual; the body rows are added to.
     """
     n_flex = flex_dof.shape[0]
-    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
-        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, False
+    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
+        q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K, elems,
+        n_flex, False
     )
     gx = gravity[0]
     gy = gravity[1]
-    for b in range(body_ref.shape[0]):
+    for b in bodies:
         iR0 = body_ref[b, 0]
         iR1 = body_ref[b, 1]
         ith = body_ref[b, 2]
@@ -208,7 +221,6 @@ def body_residual(
         ATay = -s * aRx + c * aRy
         ATgx = c * gx + s * gy
         ATgy = -s * gx + c * gy
-        beta = body_damp[b]
         for k in range(flex_off[b], flex_off[b + 1]):
             i = flex_dof[k]
             isx = flex_IS[k, 0]
@@ -216,7 +228,7 @@ def body_residual(
             R[i] += wm * (isx * ATax + isy * ATay + (flex_I0IS[k] + Sq[k]) * tha + Ma[k])
             qvf = thd * thd * (flex_I0S[k] + Mq[k]) - 2.0 * thd * Sv[k]
             qgf = isx * ATgx + isy * ATgy
-            R[i] += wf * (Kq[k] + beta * Kv[k] - qvf - qgf)
+            R[i] += wf * (Kd[k] - qvf - qgf)
 
 
 @njit(cache=True)
@@ -249,8 +261,9 @@ def body_jacobian(
         CSC data array of the Newton matrix.
     """
     n_flex = flex_dof.shape[0]
-    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kq, Kv = _flex_products(
-        q, v, a, flex_dof, elem_fdof, elem_M, elem_St, elem_K, n_flex, True
+    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
+        q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
+        np.arange(elem_fdof.shape[0]), n_flex, True
     )
     gx = gravity[0]
     gy = gravity[1]

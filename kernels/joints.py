@@ -25,125 +25,103 @@ from numba import njit
 
 
 @njit(cache=True)
-def _side(kind, dofs, u0, q, v, a, grad, Hv, Ha, dvHv):
+def _dofs(table, i, side):
+    """The six DOFs of side ``side`` of row ``i`` as a tuple (``-1`` where absent)."""
+    return (table[i, side, 0], table[i, side, 1], table[i, side, 2], table[i, side, 3],
+            table[i, side, 4], table[i, side, 5])
+
+
+@njit(cache=True)
+def _side(kind, dofs, ux0, uy0, q, v, a):
     """Value, gradient and second-order terms of one side of a row (sign not applied).
 
-    Outputs (6,) arrays on the side's local DOFs; returns ``(g, vHv)``.
+    ``dofs``: the side's six DOFs (tuple, ``-1`` where absent); ``(ux0, uy0)``: the point in the
+    body frame. Returns ``(g, vHv, grad, Hv, Ha, dvHv)``, the last four as 6-tuples on the
+    local DOFs: ``grad = dg/dq``, ``Hv = H q'``, ``Ha = H q''`` and ``dvHv = d(q'^T H q')/dq``.
+    (Values, not output arrays: scratch arrays passed into a helper cost ~2.7x the whole
+    constraint residual in refcounting and lost optimization, measured.)
     """
-    dt = grad.dtype
-    zero = dt.type(0.0)
-    th = zero
-    vth = zero
-    ath = zero
-    wx = zero
-    wy = zero
-    vwx = zero
-    vwy = zero
-    awx = zero
-    awy = zero
-    Rk = zero
-    phi = zero
-    for i in range(6):
-        grad[i] = 0.0
-        Hv[i] = 0.0
-        Ha[i] = 0.0
-        dvHv[i] = 0.0
-    if dofs[2] >= 0:
-        th = q[dofs[2]]
-        vth = v[dofs[2]]
-        ath = a[dofs[2]]
-    if dofs[3] >= 0:
-        wx = q[dofs[3]]
-        vwx = v[dofs[3]]
-        awx = a[dofs[3]]
-    if dofs[4] >= 0:
-        wy = q[dofs[4]]
-        vwy = v[dofs[4]]
-        awy = a[dofs[4]]
-    if dofs[5] >= 0:
-        phi = q[dofs[5]]
+    zero = q[0] * 0.0
+    one = zero + 1.0
+    th = q[dofs[2]] if dofs[2] >= 0 else zero
+    vth = v[dofs[2]] if dofs[2] >= 0 else zero
+    ath = a[dofs[2]] if dofs[2] >= 0 else zero
     if kind == 2:
-        grad[2] = 1.0
-        grad[5] = 1.0
-        return th + phi, zero
-    if dofs[kind] >= 0:
-        Rk = q[dofs[kind]]
+        phi = q[dofs[5]] if dofs[5] >= 0 else zero
+        z6 = (zero, zero, zero, zero, zero, zero)
+        return th + phi, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
+    wx = q[dofs[3]] if dofs[3] >= 0 else zero
+    vwx = v[dofs[3]] if dofs[3] >= 0 else zero
+    awx = a[dofs[3]] if dofs[3] >= 0 else zero
+    wy = q[dofs[4]] if dofs[4] >= 0 else zero
+    vwy = v[dofs[4]] if dofs[4] >= 0 else zero
+    awy = a[dofs[4]] if dofs[4] >= 0 else zero
+    Rk = q[dofs[kind]] if dofs[kind] >= 0 else zero
     c = np.cos(th)
     s = np.sin(th)
-    ux = u0[0] + wx
-    uy = u0[1] + wy
-    Au = (c * ux - s * uy, s * ux + c * uy)
-    AIu = (-Au[1], Au[0])
-    # A = [[c, -s], [s, c]], AĨ = [[-s, -c], [c, -s]]
+    ux = ux0 + wx
+    uy = uy0 + wy
+    # A = [[c, -s], [s, c]], AĨ = [[-s, -c], [c, -s]]; row kind of A u, AĨ u, A and AĨ
     if kind == 0:
+        Auk = c * ux - s * uy
+        AIuk = -(s * ux + c * uy)
         A0 = c
         A1 = -s
         AI0 = -s
         AI1 = -c
+        grad = (one, zero, AIuk, A0, A1, zero)
     else:
+        Auk = s * ux + c * uy
+        AIuk = c * ux - s * uy
         A0 = s
         A1 = c
         AI0 = c
         AI1 = -s
-    g = Rk + Au[kind]
-    grad[kind] = 1.0
-    grad[2] = AIu[kind]
-    grad[3] = A0
-    grad[4] = A1
+        grad = (zero, one, AIuk, A0, A1, zero)
+    g = Rk + Auk
     # H: (th, th) = -(A u)_k ; (th, w_j) = (w_j, th) = (AĨ)_kj
-    Hv[2] = -Au[kind] * vth + AI0 * vwx + AI1 * vwy
-    Hv[3] = AI0 * vth
-    Hv[4] = AI1 * vth
-    Ha[2] = -Au[kind] * ath + AI0 * awx + AI1 * awy
-    Ha[3] = AI0 * ath
-    Ha[4] = AI1 * ath
-    vHv = -Au[kind] * vth * vth + 2.0 * vth * (AI0 * vwx + AI1 * vwy)
+    Hv = (zero, zero, -Auk * vth + AI0 * vwx + AI1 * vwy, AI0 * vth, AI1 * vth, zero)
+    Ha = (zero, zero, -Auk * ath + AI0 * awx + AI1 * awy, AI0 * ath, AI1 * ath, zero)
+    vHv = -Auk * vth * vth + 2.0 * vth * (AI0 * vwx + AI1 * vwy)
     # d(v^T H v)/dq: th -> -(AĨu)_k vth² - 2 vth (A v_w)_k ; w_j -> -A_kj vth²
-    dvHv[2] = -AIu[kind] * vth * vth - 2.0 * vth * (A0 * vwx + A1 * vwy)
-    dvHv[3] = -A0 * vth * vth
-    dvHv[4] = -A1 * vth * vth
-    return g, vHv
+    dvHv = (zero, zero, -AIuk * vth * vth - 2.0 * vth * (A0 * vwx + A1 * vwy),
+            -A0 * vth * vth, -A1 * vth * vth, zero)
+    return g, vHv, grad, Hv, Ha, dvHv
 
 
 @njit(cache=True)
-def _side_hessian(kind, dofs, u0, q, H):
-    """``H = d²g/dq²`` of one side on its 6 local DOFs (zero for angle rows)."""
-    for i in range(6):
-        for j in range(6):
-            H[i, j] = 0.0
+def _side_hessian(kind, dofs, ux0, uy0, q):
+    """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side
+    (symmetric; all zero for angle rows)."""
+    zero = q[0] * 0.0
     if kind == 2:
-        return
-    th = 0.0 * H[0, 0]
-    wx = 0.0 * H[0, 0]
-    wy = 0.0 * H[0, 0]
-    if dofs[2] >= 0:
-        th = q[dofs[2]]
-    if dofs[3] >= 0:
-        wx = q[dofs[3]]
-    if dofs[4] >= 0:
-        wy = q[dofs[4]]
+        return zero, zero, zero
+    th = q[dofs[2]] if dofs[2] >= 0 else zero
+    wx = q[dofs[3]] if dofs[3] >= 0 else zero
+    wy = q[dofs[4]] if dofs[4] >= 0 else zero
     c = np.cos(th)
     s = np.sin(th)
-    ux = u0[0] + wx
-    uy = u0[1] + wy
+    ux = ux0 + wx
+    uy = uy0 + wy
     if kind == 0:
-        Auk = c * ux - s * uy
-        AI0 = -s
-        AI1 = -c
-    else:
-        Auk = s * ux + c * uy
-        AI0 = c
-        AI1 = -s
-    H[2, 2] = -Auk
-    H[2, 3] = AI0
-    H[3, 2] = AI0
-    H[2, 4] = AI1
-    H[4, 2] = AI1
+        return -(c * ux - s * uy), -s, -c
+    return -(s * ux + c * uy), c, -s
+
+
+@njit(cache=True)
+def _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
+    """Add ``coef H`` of one side to ``data`` at the positions ``hmap[i, side, j, k]``."""
+    h22, h23, h24 = _side_hessian(kind, dofs, ux0, uy0, q)
+    for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
+        p = hmap[i, side, j, k]
+        if p >= 0:
+            data[p] += coef * h
 
 
 @njit(cache=True)
 def constraint_residual(
-    q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, con_kind, con_dofs, con_u0, n_dof, R
+    q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, con_kind, con_dofs, con_u0, rows,
+    n_dof, R
 ):
     """Add ``wl J^T lam`` to the equation rows and ``scale (wcm J a - wcf F_c)`` to the
     constraint rows ``R[n_dof + i]``.
@@ -156,24 +134,24 @@ def constraint_residual(
         Target value of each row and its first and second time derivatives at this time.
     con_kind : (n_con,) int64; con_dofs : (n_con, 2, 6) int64; con_u0 : (n_con, 2, 2)
         Row description (module docstring).
+    rows : int64 array
+        The rows evaluated (all of them, or those a design variable changes; see
+        ``ffrf.body_residual``).
     """
-    dt = R.dtype
-    grad = np.zeros(6, dtype=dt)
-    Hv = np.zeros(6, dtype=dt)
-    Ha = np.zeros(6, dtype=dt)
-    dvHv = np.zeros(6, dtype=dt)
-    for i in range(con_kind.shape[0]):
+    zero = R[0] * 0.0
+    for i in rows:
         kind = con_kind[i]
-        g = dt.type(0.0)
-        Ja = dt.type(0.0)
-        Jv = dt.type(0.0)
-        vHv = dt.type(0.0)
+        g = zero
+        Ja = zero
+        Jv = zero
+        vHv = zero
         for side in range(2):
-            dofs = con_dofs[i, side]
             sg = 1.0 if side == 0 else -1.0
+            dofs = _dofs(con_dofs, i, side)
             if dofs[0] < 0 and dofs[2] < 0:
                 continue
-            gs, vHvs = _side(kind, dofs, con_u0[i, side], q, v, a, grad, Hv, Ha, dvHv)
+            gs, vHvs, grad, _, _, _ = _side(kind, dofs, con_u0[i, side, 0], con_u0[i, side, 1],
+                                            q, v, a)
             g += sg * gs
             vHv += sg * vHvs
             for j in range(6):
@@ -197,20 +175,16 @@ def constraint_jacobian(
     position of (DOF j, multiplier column i); ``map_H[i, side, j, k]``: position of
     (DOF j, DOF k) of the same side. ``-1`` marks an absent entry.
     """
-    dt = data.dtype
-    grad = np.zeros(6, dtype=dt)
-    Hv = np.zeros(6, dtype=dt)
-    Ha = np.zeros(6, dtype=dt)
-    dvHv = np.zeros(6, dtype=dt)
-    H = np.zeros((6, 6), dtype=dt)
     for i in range(con_kind.shape[0]):
         kind = con_kind[i]
         for side in range(2):
-            dofs = con_dofs[i, side]
             sg = 1.0 if side == 0 else -1.0
+            dofs = _dofs(con_dofs, i, side)
             if dofs[0] < 0 and dofs[2] < 0:
                 continue
-            _side(kind, dofs, con_u0[i, side], q, v, a, grad, Hv, Ha, dvHv)
+            ux0 = con_u0[i, side, 0]
+            uy0 = con_u0[i, side, 1]
+            _, _, grad, Hv, Ha, dvHv = _side(kind, dofs, ux0, uy0, q, v, a)
             for j in range(6):
                 if dofs[j] < 0:
                     continue
@@ -225,32 +199,25 @@ def constraint_jacobian(
                 if p >= 0:
                     data[p] += cl * scale * sg * grad[j]
             if kind != 2:
-                _side_hessian(kind, dofs, con_u0[i, side], q, H)
-                for j in range(6):
-                    for k in range(6):
-                        p = map_H[i, side, j, k]
-                        if p >= 0:
-                            data[p] += cl * bh2 * sg * lam[i] * H[j, k]
+                _add_hessian(kind, dofs, ux0, uy0, q, cl * bh2 * sg * lam[i], map_H, i, side,
+                             data)
 
 
 @njit(cache=True)
 def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
     """Position- and velocity-level violation of every row: ``phi = g - c``,
     ``phid = J q' - c'`` (each (n_con,), out)."""
-    dt = q.dtype
-    grad = np.zeros(6, dtype=dt)
-    Hv = np.zeros(6, dtype=dt)
-    Ha = np.zeros(6, dtype=dt)
-    dvHv = np.zeros(6, dtype=dt)
+    zero = q[0] * 0.0
     for i in range(con_kind.shape[0]):
-        g = dt.type(0.0)
-        Jv = dt.type(0.0)
+        g = zero
+        Jv = zero
         for side in range(2):
-            dofs = con_dofs[i, side]
             sg = 1.0 if side == 0 else -1.0
+            dofs = _dofs(con_dofs, i, side)
             if dofs[0] < 0 and dofs[2] < 0:
                 continue
-            gs, _ = _side(con_kind[i], dofs, con_u0[i, side], q, v, v, grad, Hv, Ha, dvHv)
+            gs, _, grad, _, _, _ = _side(con_kind[i], dofs, con_u0[i, side, 0],
+                                         con_u0[i, side, 1], q, v, v)
             g += sg * gs
             for j in range(6):
                 if dofs[j] >= 0:
@@ -262,26 +229,22 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
 @njit(cache=True)
 def constraint_jacobian_matrix(q, con_kind, con_dofs, con_u0, n_dof, Jc):
     """Dense constraint Jacobian ``Jc`` (n_con, n_dof), out; for checks and rank tests."""
-    dt = Jc.dtype
-    grad = np.zeros(6, dtype=dt)
-    Hv = np.zeros(6, dtype=dt)
-    Ha = np.zeros(6, dtype=dt)
-    dvHv = np.zeros(6, dtype=dt)
     Jc[:, :] = 0.0
     for i in range(con_kind.shape[0]):
         for side in range(2):
-            dofs = con_dofs[i, side]
             sg = 1.0 if side == 0 else -1.0
+            dofs = _dofs(con_dofs, i, side)
             if dofs[0] < 0 and dofs[2] < 0:
                 continue
-            _side(con_kind[i], dofs, con_u0[i, side], q, q, q, grad, Hv, Ha, dvHv)
+            _, _, grad, _, _, _ = _side(con_kind[i], dofs, con_u0[i, side, 0],
+                                        con_u0[i, side, 1], q, q, q)
             for j in range(6):
                 if dofs[j] >= 0:
                     Jc[i, dofs[j]] += sg * grad[j]
 
 
 @njit(cache=True)
-def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, R):
+def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, loads, torques, R):
     """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R``.
 
     Parameters
@@ -294,20 +257,18 @@ def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, R):
         Torque values at this time [force·length].
     torque_dofs : (n_torque, 2) int64
         DOF of the body angle and of the nodal rotation (``-1`` if absent) the torque acts on.
+    loads, torques : int64 arrays
+        The loads and torques evaluated (all, or those a design variable changes).
     """
-    dt = R.dtype
-    grad = np.zeros(6, dtype=dt)
-    Hv = np.zeros(6, dtype=dt)
-    Ha = np.zeros(6, dtype=dt)
-    dvHv = np.zeros(6, dtype=dt)
-    for i in range(load_dofs.shape[0]):
-        dofs = load_dofs[i]
+    for i in loads:
+        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
+                load_dofs[i, 4], load_dofs[i, 5])
         for k in range(2):
-            _side(k, dofs, load_u0[i], q, q, q, grad, Hv, Ha, dvHv)
+            _, _, grad, _, _, _ = _side(k, dofs, load_u0[i, 0], load_u0[i, 1], q, q, q)
             for j in range(6):
                 if dofs[j] >= 0:
                     R[dofs[j]] -= wf * grad[j] * F[i, k]
-    for i in range(torque_dofs.shape[0]):
+    for i in torques:
         for j in range(2):
             d = torque_dofs[i, j]
             if d >= 0:
@@ -317,16 +278,15 @@ def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, R):
 @njit(cache=True)
 def load_jacobian(q, cf, bh2, F, load_dofs, load_u0, load_map, data):
     """Add ``-cf bh2 d(Q_ext)/dq`` of point forces to ``data`` (``load_map`` (n_load, 6, 6))."""
-    H = np.zeros((6, 6), dtype=data.dtype)
     for i in range(load_dofs.shape[0]):
-        dofs = load_dofs[i]
+        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
+                load_dofs[i, 4], load_dofs[i, 5])
         for k in range(2):
-            _side_hessian(k, dofs, load_u0[i], q, H)
-            for j in range(6):
-                for m in range(6):
-                    p = load_map[i, j, m]
-                    if p >= 0:
-                        data[p] -= cf * bh2 * F[i, k] * H[j, m]
+            h22, h23, h24 = _side_hessian(k, dofs, load_u0[i, 0], load_u0[i, 1], q)
+            for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
+                p = load_map[i, j, m]
+                if p >= 0:
+                    data[p] -= cf * bh2 * F[i, k] * h
 
 
 @njit(cache=True)

@@ -198,7 +198,7 @@ def energy(res: Result) -> dict:
         # external power: -Q_ext . v from the load kernel alone
         Rl = np.zeros(n, dtype=s.dtype)
         load_residual(q, 1.0, F, s.load_dofs, np.ascontiguousarray(s.load_u0), T, s.torque_dofs,
-                      Rl)
+                      np.arange(s.load_dofs.shape[0]), np.arange(s.torque_dofs.shape[0]), Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
         # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
         for b in range(s.body_ref.shape[0]):

@@ -178,12 +178,13 @@ def _arr(system, name, dt):
 def residual(system, q, v, a, wm, wf, gravity=GRAVITY, stiffness=True):
     """body_residual on the System arrays (complex when any state is complex)."""
     dt = np.result_type(q, v, a, float)
-    args = [_arr(system, k, dt) for k in BODY_ARRAYS + ELEM_ARRAYS]
+    args = [_arr(system, k, dt) for k in BODY_ARRAYS + ("elem_body",) + ELEM_ARRAYS]
     if not stiffness:
         args[-1] = np.zeros_like(args[-1])
     R = np.zeros(system.n_dof, dtype=dt)
     ffrf.body_residual(q.astype(dt), v.astype(dt), a.astype(dt), wm, wf,
-                       np.asarray(gravity, dtype=dt), *args, R)
+                       np.asarray(gravity, dtype=dt), *args, np.arange(len(system.body_ref)),
+                       np.arange(len(system.elem_body)), R)
     return R
 
 
