@@ -1,14 +1,24 @@
-"""Direct-differentiation kernels: the work of one sensitivity step in three compiled calls.
+"""Direct-differentiation kernels: the work of one sensitivity step in a few compiled calls.
 
-After the primal has converged a step (``morphlab.sensitivity``):
+After the primal has converged a step (``morphlab.sensitivity``), the right-hand side of design
+variable ``i`` is ``-D_i R``, the derivative of the step residual at the converged unknowns
+along ``(ds_n/dp_i, e_i)``. It is split into
 
-1. :func:`pseudo_loads` — the right-hand sides ``-D_i R`` of every design variable ``i``: the
-   step residual at the converged unknowns ``z``, with the state at ``t_n`` perturbed along its
-   sensitivity and the system arrays replaced by variable ``i``'s (complex step or forward
-   difference), through the primal's own :func:`~morphlab.kernels.assemble.add_residual`;
-2. (SuperLU solve in Python, with the primal's last factorization;
-   :func:`csc_residual` for iterative refinement against the exact converged matrix);
-3. :func:`update_sensitivities` — the Newmark update of the sensitivity histories.
+* the state part, the same for every variable's direction: the residual depends on the old
+  state through the Newmark predictors ``q_hat, v_hat`` (and, with the paper's weighting, through
+  its old-level share), so ``R_q dq_hat + R_v dv_hat (+ old-level terms)``, with ``R_q`` and
+  ``R_v`` taken from the primal's exact Newton-matrix kernel (:func:`split_matrices`) and
+  applied to all n_x columns at once (:func:`state_loads`);
+* the explicit part ``dR/dp_i`` at the converged (real) state, by complex step or forward
+  difference of the primal's own residual kernel, evaluated only over the bodies, elements,
+  constraint rows, loads and torques whose data variable ``i`` changes
+  (:func:`explicit_loads`). The state is real, so the parts left out carry no imaginary part
+  (and cancel in a difference): the derivative is exact, and a thickness variable of a few
+  elements costs a few elements, not a whole residual.
+
+Then (in Python) one SuperLU solve with the primal's last factorization, iterative refinement
+against the exact converged matrix (:func:`csc_residual`, the matrix comes from
+:func:`state_loads`), and :func:`update_sensitivities`, the Newmark update of the histories.
 
 The step coefficients travel as two small arrays: ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)``
 and ``upd = (ga, gan, ggn)`` (``morphlab.integrator.StepCoefficients``), so that::
@@ -24,7 +34,7 @@ the same linear update the primal applies (``morphlab.integrator.newmark_predict
 import numpy as np
 from numba import njit
 
-from .assemble import add_residual
+from .assemble import add_residual_parts, fill_matrix
 
 # positions in ``S`` of the floating-point arrays that a design variable can change; a
 # sensitivity run stacks them over the design variables (leading axis n_x)
@@ -39,105 +49,148 @@ def _perturbed_tuple(S, P, i):
 
 
 @njit(cache=True)
-def _step_residual(S, q, v, a, g, lam, dq, dv, da, dg, dlam, i, e, pc, has_old, w_old, w_new,
-                   z, scale, b0, b1, ta_old, ta_new, n_dof, R):
-    """Overwrite ``R`` with the step residual at the converged unknowns ``z`` when the state at
-    ``t_n`` is ``s_n + e ds_n[:, i]`` (``e`` in the dtype of ``R``) and the arrays are ``S``."""
-    n_con = R.shape[0] - n_dof
-    dt = R.dtype
-    h, cqa, cqg, cva, cvg, bh2, gh = pc[0], pc[1], pc[2], pc[3], pc[4], pc[5], pc[6]
-    qp = np.empty(n_dof, dtype=dt)
-    vp = np.empty(n_dof, dtype=dt)
-    ap = np.empty(n_dof, dtype=dt)
-    gp = np.empty(n_dof, dtype=dt)
-    lp = np.empty(n_con, dtype=dt)
-    for k in range(n_dof):
-        qp[k] = q[k] + e * dq[k, i]
-        vp[k] = v[k] + e * dv[k, i]
-        ap[k] = a[k] + e * da[k, i]
-        gp[k] = g[k] + e * dg[k, i]
-    for k in range(n_con):
-        lp[k] = lam[k] + e * dlam[k, i]
-    R[:] = 0.0
-    if has_old:
-        add_residual(S, qp, vp, ap, lp, w_old[0], w_old[1], w_old[2], w_old[3], w_old[4],
-                     scale, b0, b1, ta_old[0], ta_old[1], ta_old[2], ta_old[3], ta_old[4],
-                     n_dof, R)
-    q1 = np.empty(n_dof, dtype=dt)
-    v1 = np.empty(n_dof, dtype=dt)
-    a1 = np.empty(n_dof, dtype=dt)
-    l1 = np.empty(n_con, dtype=dt)
-    for k in range(n_dof):
-        a1[k] = z[k]
-        q1[k] = qp[k] + h * vp[k] + cqa * ap[k] + cqg * gp[k] + bh2 * z[k]
-        v1[k] = vp[k] + cva * ap[k] + cvg * gp[k] + gh * z[k]
-    for k in range(n_con):
-        l1[k] = z[n_dof + k] * scale
-    add_residual(S, q1, v1, a1, l1, w_new[0], w_new[1], w_new[2], w_new[3], w_new[4], scale,
-                 b0, b1, ta_new[0], ta_new[1], ta_new[2], ta_new[3], ta_new[4], n_dof, R)
+def split_matrices(S, q, v, a, lam, w, scale, b0, b1, F, D0, Dq, Dv):
+    """Derivatives of one time level's residual share (weights ``w = (wm, wl, wf, wcm, wcf)``)
+    as CSC data over the step pattern: ``D0 = dR/d(a, lam/scale)`` with ``q, q'`` held,
+    ``Dq = dR/dq`` and ``Dv = dR/dq'`` (their multiplier columns are zero).
+
+    The Newton-matrix kernel returns ``D0 + bh2 Dq + gh Dv`` (the chain rule through
+    ``q = q_hat + bh2 a``, ``q' = v_hat + gh a``), so three fills at ``(bh2, gh) = (0, 0),
+    (1, 0), (0, 1)`` give the three derivatives."""
+    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], 0.0, 0.0, scale, b0, b1, F, D0)
+    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], 1.0, 0.0, scale, b0, b1, F, Dq)
+    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], 0.0, 1.0, scale, b0, b1, F, Dv)
+    for p in range(D0.shape[0]):
+        Dq[p] -= D0[p]
+        Dv[p] -= D0[p]
 
 
 @njit(cache=True)
-def pseudo_loads(S, P, q, v, a, g, lam, DQ, DV, DA, DG, DLAM, k, pert, pc, has_old, w_old,
-                 w_new, z, scale, b0, b1, TA_old, TA_new, ta_old, ta_new, n_dof, work, rhs):
-    """Right-hand sides ``rhs[:, i] = -D_i R`` of every design variable in one call.
+def _subtract_product(data, indices, indptr, n_cols, X, out):
+    """``out -= A[:, :n_cols] X`` for the CSC matrix ``A = (data, indices, indptr)``."""
+    n_x = X.shape[1]
+    for j in range(n_cols):
+        for p in range(indptr[j], indptr[j + 1]):
+            row = indices[p]
+            aij = data[p]
+            for i in range(n_x):
+                out[row, i] -= aij * X[j, i]
 
-    ``D_i R = Re[(R_i - R_0) / pert_i]`` with ``R_i`` the step residual for design ``i`` (state
-    ``s_n + pert_i ds_n[:, i]``, arrays ``P[.][i]``) and ``R_0`` the nominal one: with a
-    complex step ``pert_i = i h`` this is ``Im R_i / h`` (``R_0`` is not needed and not
-    evaluated), with real steps the forward difference of the paper's semi-analytical method.
+
+@njit(cache=True)
+def state_loads(S, q1, v1, a1, l1, w_new, F_new, has_old, q0, v0, a0, l0, w_old, F_old, scale,
+                b0, b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, J,
+                rhs):
+    """Overwrite ``rhs`` (n, n_x) with minus the state part of every pseudo-load, and ``J``
+    (nnz,) with the exact Newton matrix at the converged point (for the refinement).
+
+    ``(q1, v1, a1, l1)``: the converged state at ``t_{n+1}``; ``(q0, v0, a0, l0)``: the state
+    at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F_new, F_old``: point
+    forces at both times; ``DQ ... DLAM``: the sensitivity histories, entry ``k`` is the old
+    level; ``mats`` (6, nnz): scratch for the split matrices of both levels. All float64.
+    """
+    n_x = rhs.shape[1]
+    D0, Dq, Dv = mats[0], mats[1], mats[2]
+    split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F_new, D0, Dq, Dv)
+    for p in range(J.shape[0]):
+        J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
+    h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
+    dqh = np.empty((n_dof, n_x))
+    dvh = np.empty((n_dof, n_x))
+    for r in range(n_dof):
+        for i in range(n_x):
+            dqh[r, i] = (DQ[k, r, i] + h * DV[k, r, i] + cqa * DA[k, r, i]
+                         + cqg * DG[k, r, i])
+            dvh[r, i] = DV[k, r, i] + cva * DA[k, r, i] + cvg * DG[k, r, i]
+    rhs[:, :] = 0.0
+    _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
+    _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
+    if has_old:
+        D0, Dq, Dv = mats[3], mats[4], mats[5]
+        split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F_old, D0, Dq, Dv)
+        n_con = DLAM.shape[1]
+        x0 = np.empty((n_dof + n_con, n_x))
+        for r in range(n_dof):
+            for i in range(n_x):
+                x0[r, i] = DA[k, r, i]
+        for r in range(n_con):
+            for i in range(n_x):
+                x0[n_dof + r, i] = DLAM[k, r, i] / scale
+        _subtract_product(Dq, indices, indptr, n_dof, DQ[k], rhs)
+        _subtract_product(Dv, indices, indptr, n_dof, DV[k], rhs)
+        _subtract_product(D0, indices, indptr, n_dof + n_con, x0, rhs)
+
+
+@njit(cache=True)
+def _explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0, w_old,
+                       ta_old, scale, b0, b1, n_dof, R):
+    """Overwrite ``R`` with the step residual over ``parts`` (both levels when ``has_old``)."""
+    R[:] = 0.0
+    if has_old:
+        add_residual_parts(S, parts, q0, v0, a0, l0, w_old[0], w_old[1], w_old[2], w_old[3],
+                           w_old[4], scale, b0, b1, ta_old[0], ta_old[1], ta_old[2], ta_old[3],
+                           ta_old[4], n_dof, R)
+    add_residual_parts(S, parts, q1, v1, a1, l1, w_new[0], w_new[1], w_new[2], w_new[3],
+                       w_new[4], scale, b0, b1, ta_new[0], ta_new[1], ta_new[2], ta_new[3],
+                       ta_new[4], n_dof, R)
+
+
+@njit(cache=True)
+def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, scale,
+                   b0, b1, TA_old, TA_new, ta_old, ta_new, n_dof, pert, work, rhs):
+    """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
+    ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
+    converged state over variable ``i``'s parts, with its arrays ``P[.][i]`` and time arrays
+    ``TA[.][i]``, or the nominal ``S``, ``ta``. With a complex step (``pert_i = i h``) this is
+    ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
 
     Parameters
     ----------
     S : tuple
-        Nominal system arrays (``morphlab.solver.kernel_arrays``, the dtype of ``work``).
+        Nominal system arrays in the dtype of ``work``.
     P : tuple
         The arrays of ``S`` at positions :data:`PERTURBED`, stacked over the n_x designs.
-    q, v, a, g, lam : (n_dof,), (n_con,) float64
-        State at ``t_n`` (``g``: algorithmic acceleration).
-    DQ, DV, DA, DG : (n_t, n_dof, n_x); DLAM : (n_t, n_con, n_x) float64
-        Sensitivity histories; entry ``k`` (the step's old level) is read.
-    pert : (n_x,)
-        ``1e-30j`` (complex step) or the finite-difference steps (dtype of ``work``).
-    pc : (7,)
-        ``(h, cqa, cqg, cva, cvg, bh2, gh)``; all zero for the initial solve.
-    has_old : bool
-        Whether the residual has an old-level share (the paper's weighting).
-    w_old, w_new : (5,)
-        Weights ``(wm, wl, wf, wcm, wcf)`` of the old and new time level.
-    z : (n,) float64
-        Converged unknowns ``(a_{n+1}, lam_{n+1}/scale)``.
+    parts : tuple of 10 int64 arrays
+        ``(offsets, indices)`` of the bodies, elements, constraint rows, loads and torques each
+        variable changes (CSR layout over the variables).
+    q1, v1, a1, l1 / q0, v0, a0, l0 : float64
+        Converged states at ``t_{n+1}`` and ``t_n`` (the latter used when ``has_old``).
     TA_old, TA_new : tuples ``(C, CD, CDD, F, T)`` with a leading n_x axis
-        Time arrays of each design at ``t_n`` and ``t_{n+1}``.
-    ta_old, ta_new : tuples ``(C, CD, CDD, F, T)``
-        The nominal time arrays (used for ``R_0`` of real steps only).
-    work : (n_x + 1, n)
-        Scratch rows for the residuals (dtype of ``pert``).
-    rhs : (n, n_x) float64
-        Written.
+        Time arrays of each design at ``t_n`` and ``t_{n+1}``; ``ta_old, ta_new`` the nominal.
+    pert : (n_x,)
+        ``1e-30j`` (complex step) or the forward-difference steps (dtype of ``work``).
+    work : (2, n)
+        Scratch residuals.
     """
+    dt = work.dtype
     n_x = rhs.shape[1]
     n = rhs.shape[0]
-    dq = DQ[k]
-    dv = DV[k]
-    da = DA[k]
-    dg = DG[k]
-    dlam = DLAM[k]
-    zero = pert[0] * 0.0
-    R0 = work[n_x]
-    R0[:] = 0.0
-    if zero.imag == 0.0 and pert[0].imag == 0.0:
-        _step_residual(S, q, v, a, g, lam, dq, dv, da, dg, dlam, 0, zero, pc, has_old, w_old,
-                       w_new, z, scale, b0, b1, ta_old, ta_new, n_dof, R0)
+    s1 = (q1.astype(dt), v1.astype(dt), a1.astype(dt), l1.astype(dt))
+    s0 = (q0.astype(dt), v0.astype(dt), a0.astype(dt), l0.astype(dt))
+    b_off, b_idx, e_off, e_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
+    forward = pert[0].imag == 0.0
+    R = work[0]
+    R0 = work[1]
     for i in range(n_x):
-        Si = _perturbed_tuple(S, P, i)
+        pi = (b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]],
+              c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
+              t_idx[t_off[i]:t_off[i + 1]])
+        if (pi[0].size + pi[1].size + pi[2].size + pi[3].size + pi[4].size) == 0:
+            continue  # the variable changes only the initial state
         tai_old = (TA_old[0][i], TA_old[1][i], TA_old[2][i], TA_old[3][i], TA_old[4][i])
         tai_new = (TA_new[0][i], TA_new[1][i], TA_new[2][i], TA_new[3][i], TA_new[4][i])
-        R = work[i]
-        _step_residual(Si, q, v, a, g, lam, dq, dv, da, dg, dlam, i, pert[i], pc, has_old,
-                       w_old, w_new, z, scale, b0, b1, tai_old, tai_new, n_dof, R)
-        for r in range(n):
-            rhs[r, i] = -((R[r] - R0[r]) / pert[i]).real
+        _explicit_residual(_perturbed_tuple(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
+                           tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
+                           b0, b1, n_dof, R)
+        if forward:
+            _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
+                               s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
+                               R0)
+            for r in range(n):
+                rhs[r, i] -= ((R[r] - R0[r]) / pert[i]).real
+        else:
+            for r in range(n):
+                rhs[r, i] -= (R[r] / pert[i]).real
 
 
 @njit(cache=True)

@@ -3,22 +3,32 @@
 Direct differentiation of the step residual ``R(z_{n+1}(p); s_n(p), p) = 0`` gives, for every
 design variable ``p_i``,
 
-    J dz_{n+1}/dp_i = -D_i R,    D_i R = d/de R(z_{n+1}; s_n + e ds_n/dp_i, p + e e_i) |_{e=0}
+    J dz_{n+1}/dp_i = -D_i R,    D_i R = R_s ds_n/dp_i + dR/dp_i
 
-with ``J`` the exact Newton matrix of the converged step. The pseudo-load ``D_i R`` is one
-directional derivative of the *same* residual kernels the primal uses, taken
+with ``J`` the exact Newton matrix of the converged step. The pseudo-load is split as in the
+paper (eq. 35, 37):
 
-* by complex step, ``Im R(z; s_n + i h ds_n, p + i h e_i) / h`` with ``h = 1e-30``
-  (``method="direct"``, exact to round-off), or
-* by a forward difference (``method="direct-fd"``, the paper's semi-analytical variant),
+* the state part ``R_s ds_n``: the residual sees the old state through the Newmark predictors
+  (and, with the paper's weighting, its old-level share), so it is ``R_q dq_hat + R_v dv_hat
+  (+ ...)`` with ``R_q``, ``R_v`` from the primal's own Newton-matrix kernel, exact and shared
+  by all variables;
+* the partial derivative ``dR/dp_i`` at the converged state, through the primal's residual
+  kernel evaluated over only the bodies, elements, joint rows and loads whose data ``p_i``
+  changes, by complex step ``Im R(z; p + i h e_i) / h`` with ``h = 1e-30`` (``method="direct"``,
+  exact to round-off) or by a forward difference (``method="direct-fd"``, the paper's
+  semi-analytical variant: first order where the residual is nonlinear in the changed data,
+  e.g. a thickness, exact up to round-off where it is linear, e.g. E, a load, a rigid body's
+  joint point; a geometry change that moves a beam's nodes can make its partial derivatives
+  large against the total, and the difference's truncation error with them).
 
-and all right-hand sides of a step are solved with the primal's last factorization. That
+All right-hand sides of a step are solved with the primal's last factorization. That
 factorization is taken at the Newton iterate before the final correction ``dz``; the mismatch
 ``J(z_k) - J(z*) = O(|dz|)`` is removed by iterative refinement against the exact matrix at the
 converged point (assembled, not factored), so no factorization beyond the primal's is needed.
 The Newmark update is linear, so ``dq_{n+1} = dq_hat + beta h² da_{n+1}``,
 ``dv_{n+1} = dv_hat + gamma h da_{n+1}``. Initial sensitivities: ``dq_0, dv_0`` from ``build``
-by complex step, ``da_0, dlam_0`` from the differentiated initial solve.
+by complex step (forward difference for ``direct-fd``), ``da_0, dlam_0`` from the
+differentiated initial solve. The compiled work of a step is in :mod:`morphlab.kernels.direct`.
 
 Response gradients ``dr/dp_i = d/de r(history + e d(history)/dp_i; p + e e_i)`` are taken by
 complex step of the response over the perturbed histories, so any complex-safe function of a
@@ -39,7 +49,13 @@ import numpy as np
 
 from .compile import System, compile_model
 from .errors import SensitivityError
-from .kernels.direct import PERTURBED, csc_residual, pseudo_loads, update_sensitivities
+from .kernels.direct import (
+    PERTURBED,
+    csc_residual,
+    explicit_loads,
+    state_loads,
+    update_sensitivities,
+)
 from .results import Result
 from .solver import Settings, kernel_arrays, table_at, time_table
 from .timeloop import StepInfo, integrate
@@ -309,10 +325,56 @@ def _solve(lu, b):
                            for k in range(0, b.shape[1], SOLVE_BLOCK)], axis=1)
 
 
+def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
+    """Per entry along axis ``axis_keep``: does any value of ``a`` differ from ``b``?"""
+    d = np.asarray(a) != np.asarray(b)
+    if d.ndim == 0:
+        return d
+    d = np.moveaxis(d, axis_keep, 0)
+    return d.reshape(d.shape[0], -1).any(axis=1) if d.size else np.zeros(d.shape[0], bool)
+
+
+def _variable_parts(sys0: System, S0: tuple, Si: tuple, tab0: tuple, tabi: tuple) -> tuple:
+    """The bodies, elements, constraint rows, loads and torques whose data differ between the
+    nominal arrays ``S0`` / time table ``tab0`` and a perturbed design's ``Si`` / ``tabi``:
+    the parts its explicit pseudo-load must evaluate (:mod:`morphlab.kernels.direct`)."""
+    n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
+    damp = _changed(Si[3], S0[3])
+    elem = (_changed(Si[11], S0[11]) | _changed(Si[12], S0[12]) | _changed(Si[13], S0[13])
+            | damp[sys0.elem_body]) if n_elem else np.zeros(0, bool)
+    flex = _changed(Si[6], S0[6]) | _changed(Si[7], S0[7]) | _changed(Si[8], S0[8])
+    body = _changed(Si[2], S0[2]) | damp
+    if np.any(Si[0] != S0[0]):  # gravity acts on every body
+        body[:] = True
+    for b in range(n_body):
+        lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
+        body[b] |= bool(flex[lo:hi].any())
+    body[sys0.elem_body[elem]] = True
+    # time tables (n_t, ...): a row changes if it changes at any time
+    rows = (_changed(Si[16], S0[16]) | _changed(tabi[0], tab0[0], 1)
+            | _changed(tabi[1], tab0[1], 1) | _changed(tabi[2], tab0[2], 1))
+    loads = _changed(Si[18], S0[18]) | _changed(tabi[3], tab0[3], 1)
+    torques = _changed(tabi[4], tab0[4], 1)
+    return tuple(np.flatnonzero(m).astype(np.int64) for m in (body, elem, rows, loads, torques))
+
+
+def _pack_parts(parts: list) -> tuple:
+    """Per-variable index lists as ``(offsets, indices)`` pairs (CSR over the variables)."""
+    out = []
+    for kind in range(5):
+        lists = [p[kind] for p in parts]
+        off = np.zeros(len(lists) + 1, dtype=np.int64)
+        off[1:] = np.cumsum([len(x) for x in lists])
+        idx = np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64)
+        out += [off, idx]
+    return tuple(out)
+
+
 def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress):
     """Primal run with the direct-differentiation observer (per step: one compiled call for
-    the pseudo-loads, one multi-right-hand-side solve, an optional refinement, one compiled
-    call for the Newmark update; :mod:`morphlab.kernels.direct`)."""
+    the state part of the pseudo-loads and the exact converged matrix, one for the explicit
+    parts, one multi-right-hand-side solve, an optional refinement sweep and one compiled call
+    for the Newmark update; :mod:`morphlab.kernels.direct`)."""
     n_x = len(names)
     n_steps = settings.n_steps
     n_dof, n_con, n = sys0.n_dof, sys0.n_con, sys0.n
@@ -329,22 +391,23 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
             _same_layout(sys0, sp_, v)
             psys.append(sp_)
         pert = np.array([steps[v] for v in names])
-    complex_mode = method == "direct"
-    dt_ = np.complex128 if complex_mode else np.float64
+    dt_ = np.complex128 if method == "direct" else np.float64
     # nominal arrays in the perturbation's dtype (integer tables shared); perturbed designs
-    # stacked for the batched kernel
+    # stacked for the batched kernel; the parts each design changes
     S_nom = kernel_arrays(sys0, dt_)
     S_all = [kernel_arrays(s, dt_) for s in psys]
     P = tuple(np.ascontiguousarray(np.stack([Sk[k] for Sk in S_all])) for k in PERTURBED)
     shared: dict = {}
     tab0 = time_table(sys0, times, dt_, cache=shared)
     tables = [time_table(s, times, dt_, cache=shared) for s in psys]
+    parts = _pack_parts([_variable_parts(sys0, S_nom, Sk, tab0, tb)
+                         for Sk, tb in zip(S_all, tables)])
     TAB = tuple(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
                 for k in range(5))  # (n_t, n_x, ...)
     shape = (n_steps + 1, n_dof, n_x)
     D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
          "g": np.zeros(shape), "lam": np.zeros((n_steps + 1, n_con, n_x))}
-    if complex_mode:
+    if method == "direct":
         D["q"][0] = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
         D["v"][0] = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
     else:
@@ -352,7 +415,9 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         D["v"][0] = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
     hist = (D["q"], D["v"], D["a"], D["g"], D["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
-    work = np.zeros((n_x + 1, n), dtype=dt_)
+    work = np.zeros((2, n), dtype=dt_)
+    mats = np.zeros((6, sys0.nnz))
+    J = np.zeros(sys0.nnz)
     rhs = np.zeros((n, n_x))
     r = np.zeros((n, n_x))
     zero_dof = np.zeros(n_dof)
@@ -375,28 +440,30 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         k = info.n
         coef = info.coef
         pc, upd, w_old, w_new = arrays_of(coef)
+        has_old = coef.old is not None
+        new = info.state
         if info.prev is None:  # initial solve: the state at t_0, no old level
-            st = info.state
-            q, v, a, g, lam, k_old, k_new = st.q, st.v, zero_dof, zero_dof, zero_con, 0, 0
+            old, k_old = (new.q, new.v, zero_dof, zero_con), 0
         else:
-            st = info.prev
-            q, v, a, g, lam, k_old, k_new = st.q, st.v, st.a, st.g, st.lam, k - 1, k
-        pseudo_loads(S_nom, P, q, v, a, g, lam, *hist, k_old, pert, pc, coef.old is not None,
-                     w_old, w_new, info.z, stp.scale, stp.b0, stp.b1, table_at(TAB, k_old),
-                     table_at(TAB, k_new), table_at(tab0, k_old), table_at(tab0, k_new), n_dof,
-                     work, rhs)
+            old, k_old = (info.prev.q, info.prev.v, info.prev.a, info.prev.lam), k - 1
+        ta_old, ta_new = table_at(info.table, k_old), table_at(info.table, k)
+        state_loads(stp.S, new.q, new.v, new.a, new.lam, w_new, ta_new[3], has_old, *old,
+                    w_old, ta_old[3], stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh,
+                    sys0.indices, sys0.indptr, n_dof, *hist, k_old, pc, mats, J, rhs)
+        explicit_loads(S_nom, P, parts, new.q, new.v, new.a, new.lam, w_new, has_old, *old,
+                       w_old, stp.scale, stp.b0, stp.b1, table_at(TAB, k_old),
+                       table_at(TAB, k), table_at(tab0, k_old), table_at(tab0, k), n_dof, pert,
+                       work, rhs)
         x = _solve(info.lu, rhs)
         # The LU is one Newton iterate behind (taken at z_k, z* = z_k + dz): its relative error
         # is O(|dz|). When the last position correction exceeds REFINE_TOL of the model
-        # size, refine against the exact matrix at z* (assembled, not factored).
+        # size, refine against the exact matrix J at z* (from state_loads; not factored).
         last = info.newton_history[-1][1] if info.newton_history else 0.0
         if refine and info.prev is not None and last > REFINE_TOL:
-            stp._fill(info.z, info.qh, info.vh, info.state.t, coef,
-                      F=table_at(info.table, k)[3])
             for _ in range(refine):
-                csc_residual(stp.data, sys0.indices, sys0.indptr, x, rhs, r)
+                csc_residual(J, sys0.indices, sys0.indptr, x, rhs, r)
                 x = x + _solve(info.lu, r)
-            rr, bb = csc_residual(stp.data, sys0.indices, sys0.indptr, x, rhs, r)
+            rr, bb = csc_residual(J, sys0.indices, sys0.indptr, x, rhs, r)
             stats["refined_steps"] += 1
             stats["refinement_residual"].append(rr / max(bb, 1e-300))
         update_sensitivities(*hist, k, x, stp.scale, n_dof, pc, upd)

@@ -3,9 +3,12 @@
 Against the complex-step reference (no truncation error), a forward difference of step h has
 error (h/2) f'' + O(h²), first order; a central difference (h²/6) f''' + O(h⁴), second order
 (e.g. Nocedal & Wright, Numerical Optimization, 2nd ed., §8.1). ``"direct-fd"`` (the paper's
-semi-analytical variant) takes the pseudo-load of each step by a forward difference, so its
-error is first order too. Each test fits the slope of log(error) against log(step) over a range
-of steps above the round-off floor and checks it against the declared order.
+semi-analytical variant) takes the explicit part ``dR/dp`` of each step's pseudo-load by a
+forward difference (the state part is exact, from the Newton-matrix kernel), so its error is
+first order in the variables the residual depends on nonlinearly (thickness, geometry) and at
+round-off in those it depends on linearly (E, a torque, the density, a point mass). Each test
+fits the slope of log(error) against log(step) over a range of steps above the round-off floor
+and checks it against the declared order, or bounds the round-off.
 
 The error of a gradient column is the largest relative error over the responses (a
 displacement, the KS stress, an RMS shape error and a reaction), so one slope per variable and
@@ -105,17 +108,36 @@ DIRECT_FD_STEPS = [3e-4, 1e-4, 3e-5]
 
 
 def test_direct_fd_converges_at_first_order(reference):
-    """Section, stiffness and load variables (the geometry variable: the next test)."""
-    variables = ["t", "E", "M"]
-    errors = column_errors("direct-fd", DIRECT_FD_STEPS, P0, variables, reference)
+    """Thickness enters the residual nonlinearly (A ~ t, I ~ t³): first order."""
+    errors = column_errors("direct-fd", DIRECT_FD_STEPS, P0, ["t"], reference)
+    assert abs(slope(DIRECT_FD_STEPS, errors["t"]) - 1.0) < 0.1, errors
+
+
+# The residual is linear in E (K ~ E) and in the torque, so the forward difference of the
+# explicit part has no truncation error; what is left is round-off, eps |R_p| / h, with R_p the
+# residual over the parts the variable changes: on this swinging pendulum the beam's inertia
+# and gravity forces exceed its elastic forces by ~1e5, so the relative error is about
+# 1e-16 * 1e5 / h (measured h * error: 5e-11..6e-11 for E, <= 3e-13 for the torque). Bound
+# 1e-9 / h: a margin of ~16, and a first-order truncation error of size h (what a wrong state
+# part would leave) fails it at the largest step by a factor of ~30.
+def test_direct_fd_is_exact_to_round_off_for_linear_variables(reference):
+    errors = column_errors("direct-fd", DIRECT_FD_STEPS, P0, ["E", "M"], reference)
     for v, e in errors.items():
-        assert abs(slope(DIRECT_FD_STEPS, e) - 1.0) < 0.1, (v, e)
+        assert np.all(np.asarray(e) < 1e-9 / np.asarray(DIRECT_FD_STEPS)), (v, e)
 
 
+# Moving the pivot changes the joint rows' partial derivatives by ~2e3 (scaled rows) while the
+# total derivative, after the state part cancels them, is small: the forward difference's
+# relative truncation error of the partials (~h) is amplified by that ratio. This is the known
+# weakness of the semi-analytical method for shape variables (Barthelemy & Haftka, AIAA J. 28
+# (1990) 1533); the complex-step pseudo-load ("direct") has no truncation error. Measured
+# error / h = 470 (the KS stress, whose pivot sensitivity is 2e-4 of its thickness
+# sensitivity), 0.7 for the displacement; bound 2000 h: a margin of 4, and the first-order
+# slope is checked as well.
 def test_direct_fd_geometry_variable_converges(reference):
     errors = column_errors("direct-fd", DIRECT_FD_STEPS, P0, ["x_pivot"], reference)
     assert abs(slope(DIRECT_FD_STEPS, errors["x_pivot"]) - 1.0) < 0.1, errors
-    assert errors["x_pivot"][-1] < 1e-3
+    assert np.all(np.asarray(errors["x_pivot"]) < 2000.0 * np.asarray(DIRECT_FD_STEPS)), errors
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # overflow of the 370x-perturbed runs
