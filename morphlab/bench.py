@@ -52,6 +52,21 @@ def _timeit(fn, repeats: int) -> dict:
     return _stats(times)
 
 
+def _rounds(fns: dict, repeats: int) -> dict:
+    """Median, min and max of each function: one warm-up call each, then ``repeats`` rounds
+    calling every function once per round, so that a change of the machine's load hits all of
+    them alike (the ratios are formed within one round set)."""
+    for fn in fns.values():
+        fn()
+    times: dict = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return {k: _stats(v) for k, v in times.items()}
+
+
 def _morphing():
     from . import morphing
 
@@ -60,7 +75,14 @@ def _morphing():
 
 # ---------------------------------------------------------------------------------------------
 def case_morphing(repeats: int, quick: bool) -> dict:
-    """Table 2 on this machine."""
+    """Table 2 on this machine.
+
+    ``primal`` is what one analysis of a design costs a user: build and compile the model from
+    the design dict, simulate, evaluate the three responses (as notebook 04 times it); the
+    sensitivity methods start from the same dict and return the values and the gradients.
+    ``primal_solver_only`` (simulate a compiled model, no responses) is kept for reference.
+    All runs use full Newton; ``primal_modified_newton`` is the faster primal alone.
+    """
     import morphlab as ml
 
     mo = _morphing()
@@ -68,26 +90,37 @@ def case_morphing(repeats: int, quick: bool) -> dict:
     p0 = dict(mo.DEFAULTS)
     resp = mo.RESPONSES
     system = ml.compile_model(mo.build(p0))
+
+    def primal():
+        r = ml.simulate(mo.build(p0), **settings)
+        return {k: f(r) for k, f in resp.items()}
+
+    def sens(method):
+        return lambda: ml.sensitivities(mo.build, p0, resp, method=method, **settings)
+
     out = {"n_x": len(p0), "settings": settings}
-    out["primal"] = _timeit(lambda: ml.simulate(system, **settings), repeats)
-    out["primal_from_build"] = _timeit(lambda: ml.simulate(mo.build(p0), **settings), repeats)
-    # the primal alone can go faster with the factorization kept over iterations and steps;
-    # the ratios below use full Newton in both runs (what the sensitivities need)
-    out["primal_modified_newton"] = _timeit(
-        lambda: ml.simulate(system, newton="modified", **settings), repeats)
-    for method, key in (("direct", "direct"), ("direct-fd", "direct_fd"),
-                        ("forward-difference", "finite_difference")):
-        out[key] = _timeit(lambda m=method: ml.sensitivities(mo.build, p0, resp, method=m,
-                                                             **settings),
-                           max(1, repeats if method != "forward-difference" else repeats // 2))
+    out.update(_rounds({
+        "primal": primal,
+        "primal_solver_only": lambda: ml.simulate(system, **settings),
+        "primal_modified_newton": lambda: ml.simulate(system, newton="modified", **settings),
+        "direct": sens("direct"),
+        "direct_fd": sens("direct-fd"),
+    }, repeats))
+    out["finite_difference"] = _timeit(sens("forward-difference"), max(1, repeats // 2))
     prim = out["primal"]["median"]
+    solver = out["primal_solver_only"]["median"]
     out["ratios"] = {
         "direct_over_primal": out["direct"]["median"] / prim,
         "direct_fd_over_primal": out["direct_fd"]["median"] / prim,
         "finite_difference_over_primal": out["finite_difference"]["median"] / prim,
         "finite_difference_over_direct": (out["finite_difference"]["median"]
                                           / out["direct"]["median"]),
+        "direct_over_primal_solver_only": out["direct"]["median"] / solver,
     }
+    # where the extra time of a direct run goes (its own timers, median over runs)
+    parts = [ml.sensitivities(mo.build, p0, resp, method="direct", **settings).timing
+             for _ in range(max(1, repeats))]
+    out["direct_parts_s"] = {k: float(np.median([t[k] for t in parts])) for k in parts[0]}
     res = ml.simulate(system, **settings)
     out["steps"] = int(res.n_t - 1)
     out["newton_iterations_per_step"] = float(np.mean(res.newton_iterations[1:]))
@@ -143,12 +176,17 @@ def med(fn):
     return float(np.median(ts)), float(min(ts)), float(max(ts))
 res = ml.simulate(system, **settings)
 primal = med(lambda: ml.simulate(system, **settings))
-direct = med(lambda: ml.sensitivities(build, p0, mo.RESPONSES, method="direct", **settings))
+runs = []
+direct = med(lambda: runs.append(ml.sensitivities(build, p0, mo.RESPONSES, method="direct",
+                                                  **settings).timing))
+part = {k: float(np.median([t[k] for t in runs])) for k in ("run", "setup", "responses")}
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 print(json.dumps({"n_elements": n_el, "n_dof": system.n_dof, "steps": n_steps,
                   "newton_iterations_per_step": float(np.mean(res.newton_iterations[1:])),
                   "primal_per_step": [x / n_steps for x in primal],
-                  "direct_per_step": [x / n_steps for x in direct],
+                  "direct_per_step": part["run"] / n_steps,
+                  "direct_total_per_step": [x / n_steps for x in direct],
+                  "direct_setup_s": part["setup"], "direct_responses_s": part["responses"],
                   "peak_memory_MiB": peak}))
 """
 
@@ -165,7 +203,7 @@ def case_elements(repeats: int, quick: bool) -> dict:
     ne = np.array([r["n_elements"] for r in rows], dtype=float)
     fit = {}
     for key in ("primal_per_step", "direct_per_step"):
-        t = np.array([r[key][0] for r in rows])
+        t = np.array([r[key][0] if isinstance(r[key], list) else r[key] for r in rows])
         big = ne >= 100
         fit[key] = float(np.polyfit(np.log(ne[big]), np.log(t[big]), 1)[0]) if big.sum() >= 2 \
             else float("nan")
@@ -173,17 +211,25 @@ def case_elements(repeats: int, quick: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
+#: Skin elements of the design-variable case: 60, so that 50 thickness groups exist.
+VARIABLES_ELEMENTS = 60
+
+
 def case_variables(repeats: int, quick: bool) -> dict:
-    """Direct / primal against the number of design variables (thickness per element group)."""
+    """Direct / primal against the number of design variables: the skin thickness per group
+    of adjacent elements of a 60-element skin, the KS stress as response. Primal and direct
+    both start from the design dict (build, compile, simulate, response); the per-variable
+    cost is the slope of a straight-line fit of direct / primal against n_x."""
     import morphlab as ml
 
     mo = _morphing()
     settings = dict(mo.SETTINGS)
     p_base = dict(mo.DEFAULTS)
-    n_el = mo.N_ELEMENTS
+    n_el = VARIABLES_ELEMENTS
+    resp = {"ks_max_stress": mo.RESPONSES["ks_max_stress"]}
     rows = []
     for n_x in ([1, 5, 20] if quick else [1, 5, 20, 50]):
-        groups = np.array_split(np.arange(n_el), min(n_x, n_el))
+        groups = np.array_split(np.arange(n_el), n_x)
 
         def build(p, groups=groups):
             t = np.empty(n_el, dtype=np.result_type(*[type(p[f"t{k}"]) for k in
@@ -192,27 +238,32 @@ def case_variables(repeats: int, quick: bool) -> dict:
                 t[g] = p[f"t{k}"]
             q = dict(p_base)
             q["t_w"] = t
-            return mo.build(q)
+            return mo.build(q, n_elements=n_el)
 
-        p0 = {f"t{k}": p_base["t_w"] for k in range(len(groups))}
-        if n_x > n_el:
-            continue
-        system = ml.compile_model(build(p0))
-        resp = {"ks_max_stress": mo.RESPONSES["ks_max_stress"]}
-        prim = _timeit(lambda s=system: ml.simulate(s, **settings), repeats)
-        dire = _timeit(lambda b=build, p=p0, r=resp: ml.sensitivities(b, p, r, method="direct",
-                                                              **settings), repeats)
-        rows.append({"n_x": n_x, "primal": prim, "direct": dire,
-                     "direct_over_primal": dire["median"] / prim["median"],
+        p0 = {f"t{k}": p_base["t_w"] for k in range(n_x)}
+
+        def primal(b=build, p=p0):
+            r = ml.simulate(b(p), **settings)
+            return resp["ks_max_stress"](r)
+
+        t = _rounds({"primal": primal,
+                     "direct": lambda b=build, p=p0: ml.sensitivities(
+                         b, p, resp, method="direct", **settings)}, repeats)
+        rows.append({"n_x": n_x, "primal": t["primal"], "direct": t["direct"],
+                     "direct_over_primal": t["direct"]["median"] / t["primal"]["median"],
                      "finite_difference_over_primal_estimate": n_x + 1})
-    return {"rows": rows}
+    nx = np.array([r["n_x"] for r in rows], dtype=float)
+    ratio = np.array([r["direct_over_primal"] for r in rows])
+    slope, intercept = np.polyfit(nx, ratio, 1)
+    return {"n_elements": n_el, "rows": rows,
+            "fit": {"per_variable": float(slope), "intercept": float(intercept)}}
 
 
 # ---------------------------------------------------------------------------------------------
 _GROUPS = (
     ("assembly kernels", ("add_residual", "fill_matrix")),
     ("sensitivity kernels (pseudo-loads, update, refinement residual)",
-     ("pseudo_loads", "update_sensitivities", "csc_residual")),
+     ("state_loads", "explicit_loads", "update_sensitivities", "csc_residual")),
     ("factorization", ("gstrf",)),
     ("solves", ("'solve' of 'SuperLU'",)),
     ("sparse matrix construction", ("_compressed.py", "_csc.py", "_sputils.py", "_base.py")),
@@ -272,22 +323,29 @@ def table(results: dict) -> str:
         lines += ["### Morphing leading edge (Table 2 on this machine)", "",
                   "| run | median [s] | min | max | / primal |", "|---|---|---|---|---|"]
         prim = m["primal"]["median"]
-        for key, label in (("primal", "one primal run"),
-                           ("direct", "direct differentiation, 5 variables"),
-                           ("direct_fd", "direct with FD pseudo-loads (paper's variant)"),
-                           ("finite_difference", "finite differences (n_x + 1 runs)")):
+        for key, label in (
+                ("primal", "one primal run: build, compile, simulate, 3 responses"),
+                ("direct", "direct differentiation, 5 variables (values and gradients)"),
+                ("direct_fd", "direct with FD partial derivatives (paper's variant)"),
+                ("finite_difference", "finite differences (n_x + 1 runs)"),
+                ("primal_solver_only", "simulate a compiled model only (no build, no "
+                                       "responses)"),
+                ("primal_modified_newton", "the same with modified Newton (primal only)")):
+            if key not in m:
+                continue
             s = m[key]
             lines.append(f"| {label} | {s['median']:.4f} | {s['min']:.4f} | {s['max']:.4f} | "
                          f"{s['median'] / prim:.2f} |")
-        if "primal_modified_newton" in m:
-            s = m["primal_modified_newton"]
-            lines.append(f"| one primal run, modified Newton (not comparable: ratios use full "
-                         f"Newton) | {s['median']:.4f} | {s['min']:.4f} | {s['max']:.4f} | "
-                         f"{s['median'] / prim:.2f} |")
-        lines += ["", f"finite differences / direct = "
-                      f"{m['ratios']['finite_difference_over_direct']:.2f}; "
+        rt = m["ratios"]
+        lines += ["", f"finite differences / direct = {rt['finite_difference_over_direct']:.2f}"
+                      f"; direct / simulate-only = "
+                      f"{rt.get('direct_over_primal_solver_only', float('nan')):.2f}; "
                       f"{m['steps']} steps, {m['newton_iterations_per_step']:.2f} Newton "
                       "iterations per step.", ""]
+        if "direct_parts_s" in m:
+            d = m["direct_parts_s"]
+            lines += ["Inside a direct run (its own timers, median): " + ", ".join(
+                f"{k} {v:.4f} s" for k, v in d.items()), ""]
     s = results["cases"].get("startup")
     if s:
         lines += ["### Start-up", "", "| measure | median [s] |", "|---|---|",
@@ -299,25 +357,32 @@ def table(results: dict) -> str:
     e = results["cases"].get("elements")
     if e:
         lines += ["### Growth with elements", "",
-                  "| elements | DOFs | primal per step [ms] | direct per step [ms] | "
-                  "Newton it./step | peak memory [MiB] |", "|---|---|---|---|---|---|"]
+                  "| elements | DOFs | primal per step [ms] | direct per step [ms] | direct "
+                  "set-up + responses [s] | Newton it./step | peak memory [MiB] |",
+                  "|---|---|---|---|---|---|---|"]
         for r in e["rows"]:
+            dps = r["direct_per_step"]
+            dps = dps[0] if isinstance(dps, list) else dps
+            extra = r.get("direct_setup_s", float("nan")) + r.get("direct_responses_s", 0.0)
             lines.append(f"| {r['n_elements']} | {r['n_dof']} | "
-                         f"{1e3 * r['primal_per_step'][0]:.3f} | "
-                         f"{1e3 * r['direct_per_step'][0]:.3f} | "
-                         f"{r['newton_iterations_per_step']:.2f} | {r['peak_memory_MiB']:.0f} |")
+                         f"{1e3 * r['primal_per_step'][0]:.3f} | {1e3 * dps:.3f} | "
+                         f"{extra:.3f} | {r['newton_iterations_per_step']:.2f} | "
+                         f"{r['peak_memory_MiB']:.0f} |")
         f = e["fitted_exponent"]
         lines += ["", f"fitted exponent (>= 100 elements): primal {f['primal_per_step']:.2f}, "
                       f"direct {f['direct_per_step']:.2f}", ""]
     v = results["cases"].get("variables")
     if v:
-        lines += ["### Growth with design variables", "",
-                  "| n_x | primal [s] | direct [s] | direct / primal | FD / primal (n_x+1) |",
-                  "|---|---|---|---|---|"]
+        lines += [f"### Growth with design variables ({v.get('n_elements', 30)}-element skin)",
+                  "", "| n_x | primal [s] | direct [s] | direct / primal | FD / primal "
+                  "(n_x+1) |", "|---|---|---|---|---|"]
         for r in v["rows"]:
             lines.append(f"| {r['n_x']} | {r['primal']['median']:.4f} | "
                          f"{r['direct']['median']:.4f} | {r['direct_over_primal']:.2f} | "
                          f"{r['finite_difference_over_primal_estimate']} |")
+        if "fit" in v:
+            lines += ["", f"straight-line fit: direct / primal = {v['fit']['intercept']:.2f} + "
+                          f"{v['fit']['per_variable']:.3f} n_x"]
         lines.append("")
     p = results["cases"].get("profile")
     if p:

@@ -136,17 +136,49 @@ def _diff_column(fn, base: Result, pert, method, step):
     return (np.asarray(fn(plus)) - np.asarray(fn(minus))) / (2.0 * step)
 
 
+def _lazy_history(name: str) -> property:
+    """A history of :class:`_PerturbedResult`, formed on first access."""
+
+    def get(self):
+        arr = self._histories.get(name)
+        if arr is None:
+            base, d, col = self._source
+            arr = getattr(base, name) + 1j * CS_STEP * d[name][:, :, col]
+            self._histories[name] = arr
+        return arr
+
+    def set(self, value):
+        if value is not None:
+            self._histories[name] = value
+
+    return property(get, set)
+
+
+class _PerturbedResult(Result):
+    """A complex Result of one design variable: histories ``x + i h dx/dp_col`` on the complex
+    system. Each history is formed when a response first reads it (a response of the
+    positions needs neither velocities, accelerations nor multipliers: with many variables
+    the other complex copies cost more than the response)."""
+
+    q = _lazy_history("q")
+    v = _lazy_history("v")
+    a = _lazy_history("a")
+    lam = _lazy_history("lam")
+
+    def __init__(self, base: Result, system: System, d: dict, col: int):
+        self._histories: dict = {}
+        self._source = (base, d, col)
+        super().__init__(
+            system=system, settings=base.settings, t=base.t, q=None, v=None, a=None, lam=None,
+            newton_iterations=base.newton_iterations,
+            constraint_violation=base.constraint_violation,
+            velocity_violation=base.velocity_violation, status=base.status,
+            message=base.message, scale=base.scale)
+
+
 def _perturbed_result(base: Result, system: System, d: dict, col: int) -> Result:
     """A complex Result: histories ``x + i h dx/dp_col`` on the complex system ``system``."""
-    h = CS_STEP
-    return Result(
-        system=system, settings=base.settings, t=base.t,
-        q=base.q + 1j * h * d["q"][:, :, col], v=base.v + 1j * h * d["v"][:, :, col],
-        a=base.a + 1j * h * d["a"][:, :, col], lam=base.lam + 1j * h * d["lam"][:, :, col],
-        newton_iterations=base.newton_iterations,
-        constraint_violation=base.constraint_violation,
-        velocity_violation=base.velocity_violation, status=base.status, message=base.message,
-        scale=base.scale)
+    return _PerturbedResult(base, system, d, col)
 
 
 def _same_layout(a: System, b: System, name: str) -> None:
