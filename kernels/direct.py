@@ -78,20 +78,20 @@ def _subtract_product(data, indices, indptr, n_cols, X, out):
 
 
 @njit(cache=True)
-def state_loads(S, q1, v1, a1, l1, w_new, F_new, has_old, q0, v0, a0, l0, w_old, F_old, scale,
-                b0, b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, J,
-                rhs):
+def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_new, scale, b0,
+                b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, J, rhs):
     """Overwrite ``rhs`` (n, n_x) with minus the state part of every pseudo-load, and ``J``
     (nnz,) with the exact Newton matrix at the converged point (for the refinement).
 
     ``(q1, v1, a1, l1)``: the converged state at ``t_{n+1}``; ``(q0, v0, a0, l0)``: the state
-    at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F_new, F_old``: point
-    forces at both times; ``DQ ... DLAM``: the sensitivity histories, entry ``k`` is the old
-    level; ``mats`` (6, nnz): scratch for the split matrices of both levels. All float64.
+    at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F`` (n_t, n_load, 2):
+    the point forces at every time; ``k_new`` and ``k``: the time indices of ``t_{n+1}`` and
+    ``t_n``; ``DQ ... DLAM``: the sensitivity histories (entry ``k`` is the old level);
+    ``mats`` (6, nnz): scratch for the split matrices of both levels. All float64.
     """
     n_x = rhs.shape[1]
     D0, Dq, Dv = mats[0], mats[1], mats[2]
-    split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F_new, D0, Dq, Dv)
+    split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F[k_new], D0, Dq, Dv)
     for p in range(J.shape[0]):
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
     h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
@@ -107,7 +107,7 @@ def state_loads(S, q1, v1, a1, l1, w_new, F_new, has_old, q0, v0, a0, l0, w_old,
     _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
     if has_old:
         D0, Dq, Dv = mats[3], mats[4], mats[5]
-        split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F_old, D0, Dq, Dv)
+        split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F[k], D0, Dq, Dv)
         n_con = DLAM.shape[1]
         x0 = np.empty((n_dof + n_con, n_x))
         for r in range(n_dof):
@@ -137,7 +137,7 @@ def _explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0,
 
 @njit(cache=True)
 def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, scale,
-                   b0, b1, TA_old, TA_new, ta_old, ta_new, n_dof, pert, work, rhs):
+                   b0, b1, TAB, tab0, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
     ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
     converged state over variable ``i``'s parts, with its arrays ``P[.][i]`` and time arrays
@@ -155,8 +155,10 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
         variable changes (CSR layout over the variables).
     q1, v1, a1, l1 / q0, v0, a0, l0 : float64
         Converged states at ``t_{n+1}`` and ``t_n`` (the latter used when ``has_old``).
-    TA_old, TA_new : tuples ``(C, CD, CDD, F, T)`` with a leading n_x axis
-        Time arrays of each design at ``t_n`` and ``t_{n+1}``; ``ta_old, ta_new`` the nominal.
+    TAB : tuple ``(C, CD, CDD, F, T)`` with leading axes (n_t, n_x)
+        Time arrays of each design at every time; ``tab0`` the nominal ones (leading n_t).
+    k_old, k_new : int
+        Time indices of ``t_n`` and ``t_{n+1}``.
     pert : (n_x,)
         ``1e-30j`` (complex step) or the forward-difference steps (dtype of ``work``).
     work : (2, n)
@@ -177,20 +179,27 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
               t_idx[t_off[i]:t_off[i + 1]])
         if (pi[0].size + pi[1].size + pi[2].size + pi[3].size + pi[4].size) == 0:
             continue  # the variable changes only the initial state
-        tai_old = (TA_old[0][i], TA_old[1][i], TA_old[2][i], TA_old[3][i], TA_old[4][i])
-        tai_new = (TA_new[0][i], TA_new[1][i], TA_new[2][i], TA_new[3][i], TA_new[4][i])
+        tai_old = (TAB[0][k_old, i], TAB[1][k_old, i], TAB[2][k_old, i], TAB[3][k_old, i],
+                   TAB[4][k_old, i])
+        tai_new = (TAB[0][k_new, i], TAB[1][k_new, i], TAB[2][k_new, i], TAB[3][k_new, i],
+                   TAB[4][k_new, i])
         _explicit_residual(_perturbed_tuple(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
                            tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
                            b0, b1, n_dof, R)
         if forward:
+            ta_old = (tab0[0][k_old], tab0[1][k_old], tab0[2][k_old], tab0[3][k_old],
+                      tab0[4][k_old])
+            ta_new = (tab0[0][k_new], tab0[1][k_new], tab0[2][k_new], tab0[3][k_new],
+                      tab0[4][k_new])
             _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
                                s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
                                R0)
             for r in range(n):
                 rhs[r, i] -= ((R[r] - R0[r]) / pert[i]).real
-        else:
+        else:  # Re(R / (i h)) = Im(R) / h
+            h = pert[i].imag
             for r in range(n):
-                rhs[r, i] -= (R[r] / pert[i]).real
+                rhs[r, i] -= R[r].imag / h
 
 
 @njit(cache=True)

@@ -171,6 +171,8 @@ def body_residual(
     R : (>= n_dof,), in/out
         Residual; the body rows are added to.
     """
+    if bodies.shape[0] == 0:
+        return
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K, elems,

@@ -57,7 +57,7 @@ from .kernels.direct import (
     update_sensitivities,
 )
 from .results import Result
-from .solver import Settings, kernel_arrays, table_at, time_table
+from .solver import Settings, kernel_arrays, time_table
 from .timeloop import StepInfo, integrate
 
 # Refine the direct solve against the exact converged matrix only when the last Newton
@@ -478,14 +478,12 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
             old, k_old = (new.q, new.v, zero_dof, zero_con), 0
         else:
             old, k_old = (info.prev.q, info.prev.v, info.prev.a, info.prev.lam), k - 1
-        ta_old, ta_new = table_at(info.table, k_old), table_at(info.table, k)
-        state_loads(stp.S, new.q, new.v, new.a, new.lam, w_new, ta_new[3], has_old, *old,
-                    w_old, ta_old[3], stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh,
+        state_loads(stp.S, new.q, new.v, new.a, new.lam, w_new, has_old, *old, w_old,
+                    info.table[3], k, stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh,
                     sys0.indices, sys0.indptr, n_dof, *hist, k_old, pc, mats, J, rhs)
         explicit_loads(S_nom, P, parts, new.q, new.v, new.a, new.lam, w_new, has_old, *old,
-                       w_old, stp.scale, stp.b0, stp.b1, table_at(TAB, k_old),
-                       table_at(TAB, k), table_at(tab0, k_old), table_at(tab0, k), n_dof, pert,
-                       work, rhs)
+                       w_old, stp.scale, stp.b0, stp.b1, TAB, tab0, k_old, k, n_dof, pert, work,
+                       rhs)
         x = _solve(info.lu, rhs)
         # The LU is one Newton iterate behind (taken at z_k, z* = z_k + dz): its relative error
         # is O(|dz|). When the last position correction exceeds REFINE_TOL of the model
