@@ -203,7 +203,18 @@ def _rot(th):
     return np.array([[c, -s], [s, c]])
 
 
-def compile_model(model: Model, dtype=None) -> System:
+# what the Newton pattern is built from, and what it consists of (morphlab.pattern)
+_TOPOLOGY_KEYS = ("n_dof", "n_con", "body_ref", "flex_off", "flex_dof", "elem_fdof", "con_kind",
+                  "con_dofs", "load_dofs")
+_PATTERN_KEYS = ("indptr", "indices", "border_off", "border_map", "elem_map", "con_map_row",
+                 "con_map_col", "con_map_H", "load_map")
+
+
+def _same_topology(sysd: dict, like: System) -> bool:
+    return all(np.array_equal(sysd[k], getattr(like, k)) for k in _TOPOLOGY_KEYS)
+
+
+def compile_model(model: Model, dtype=None, *, like: System | None = None) -> System:
     """Compile ``model`` into a :class:`System`.
 
     Parameters
@@ -212,6 +223,10 @@ def compile_model(model: Model, dtype=None) -> System:
     dtype : numpy dtype, optional
         Force float64 or complex128; by default complex128 exactly when the model holds complex
         numbers (a complex-step perturbation).
+    like : System, optional
+        A system of the same topology (a perturbed design of a sensitivity run): its Newton
+        pattern and scatter maps are reused when the DOF, element, joint and load tables are
+        equal (they are compared, and the pattern is built afresh when they are not).
 
     Raises
     ------
@@ -442,7 +457,10 @@ def compile_model(model: Model, dtype=None) -> System:
     # extent: fall back to 1 (a unit-agnostic "no scale")
     size = float(np.ptp(extent, axis=0).max())
     sysd["length_scale"] = size if size > 0 else 1.0
-    sysd.update(newton_pattern(sysd))
+    if like is not None and _same_topology(sysd, like):
+        sysd.update({k: getattr(like, k) for k in _PATTERN_KEYS})
+    else:
+        sysd.update(newton_pattern(sysd))
     system = System(**sysd)
     check_initial(system)
     check_rank(system)

@@ -297,7 +297,7 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     for v in names:
         pv = dict(p0)
         pv[v] = p0[v] + 1j * CS_STEP
-        sp_ = compile_model(build(pv), dtype=np.complex128)
+        sp_ = compile_model(build(pv), dtype=np.complex128, like=sys0)
         _same_layout(sys0, sp_, v)
         if not _uses_variable(sp_, sys0, t_end):
             raise SensitivityError(
@@ -419,7 +419,7 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
         for v in names:
             pv = dict(p0)
             pv[v] = p0[v] + steps[v]
-            sp_ = compile_model(build(pv), dtype=np.float64)
+            sp_ = compile_model(build(pv), dtype=np.float64, like=sys0)
             _same_layout(sys0, sp_, v)
             psys.append(sp_)
         pert = np.array([steps[v] for v in names])
@@ -534,7 +534,7 @@ def _differences(sys0, settings, names, build, p0, steps, method, progress):
         for sign in ((1.0,) if method == "forward-difference" else (1.0, -1.0)):
             pv = dict(p0)
             pv[v] = p0[v] + sign * steps[v]
-            sp_ = compile_model(build(pv), dtype=np.float64)
+            sp_ = compile_model(build(pv), dtype=np.float64, like=sys0)
             _same_layout(sys0, sp_, v)
             r = integrate(sp_, settings, scale=res0.scale, progress=progress)
             nfac += r.n_factorizations
