@@ -59,3 +59,38 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     constraint_jacobian(q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, S[14], S[15], S[16],
                         S[23], S[24], S[25], data)
     load_jacobian(q, cf, bh2, F, S[17], S[18], S[26], data)
+
+
+@njit(cache=True)
+def _step_state(z, qh, vh, bh2, gh, scale, n_dof):
+    """``(q, v, a, lam)`` of a step at the unknowns ``z = (a, lam/scale)``:
+    ``q = q_hat + bh2 a``, ``v = v_hat + gh a``."""
+    n_con = z.shape[0] - n_dof
+    q = np.empty(n_dof, dtype=z.dtype)
+    v = np.empty(n_dof, dtype=z.dtype)
+    a = np.empty(n_dof, dtype=z.dtype)
+    lam = np.empty(n_con, dtype=z.dtype)
+    for k in range(n_dof):
+        a[k] = z[k]
+        q[k] = qh[k] + bh2 * z[k]
+        v[k] = vh[k] + gh * z[k]
+    for k in range(n_con):
+        lam[k] = z[n_dof + k] * scale
+    return q, v, a, lam
+
+
+@njit(cache=True)
+def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, R):
+    """``R = R_hist +`` the new level's share (weights ``w``) at the step unknowns ``z``: the
+    Newton residual in one call (``morphlab.solver.Stepper.residual``)."""
+    q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, n_dof)
+    R[:] = R_hist
+    add_residual(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], scale, b0, b1, c, cd, cdd, F, T,
+                 n_dof, R)
+
+
+@njit(cache=True)
+def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
+    """The exact Newton matrix at the step unknowns ``z`` into ``data`` (weights ``w``)."""
+    q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, qh.shape[0])
+    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], bh2, gh, scale, b0, b1, F, data)
