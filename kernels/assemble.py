@@ -82,11 +82,16 @@ def _step_state(z, qh, vh, bh2, gh, scale, n_dof):
 @njit(cache=True)
 def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, R):
     """``R = R_hist +`` the new level's share (weights ``w``) at the step unknowns ``z``: the
-    Newton residual in one call (``morphlab.solver.Stepper.residual``)."""
+    Newton residual in one call (``morphlab.solver.Stepper.residual``). Returns ``|R|²`` (NaN
+    or Inf when an entry is not finite)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, n_dof)
     R[:] = R_hist
     add_residual(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], scale, b0, b1, c, cd, cdd, F, T,
                  n_dof, R)
+    ssq = 0.0
+    for k in range(R.shape[0]):
+        ssq += R[k].real * R[k].real + R[k].imag * R[k].imag
+    return ssq
 
 
 @njit(cache=True)
@@ -94,3 +99,22 @@ def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     """The exact Newton matrix at the step unknowns ``z`` into ``data`` (weights ``w``)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, qh.shape[0])
     fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], bh2, gh, scale, b0, b1, F, data)
+
+
+@njit(cache=True)
+def apply_correction(z, dz, n_dof):
+    """``z + dz`` (new array), the largest ``|dz|`` of the first ``n_dof`` entries (the
+    acceleration part) and whether every entry of ``dz`` is finite."""
+    out = np.empty_like(z)
+    big = 0.0
+    finite = True
+    for k in range(z.shape[0]):
+        d = dz[k]
+        if not (np.isfinite(d.real) and np.isfinite(d.imag)):
+            finite = False
+        out[k] = z[k] + d
+        if k < n_dof:
+            m = abs(d)
+            if m > big:
+                big = m
+    return out, big, finite

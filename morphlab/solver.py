@@ -41,7 +41,9 @@ from .integrator import (
     newmark_update,
     step_coefficients,
 )
-from .kernels.assemble import add_residual, step_matrix, step_residual
+from .kernels.assemble import add_residual, apply_correction, step_matrix, step_residual
+from .kernels.dense import csc_to_dense, lu_factor
+from .kernels.dense import lu_solve as dense_lu_solve
 
 
 class State(NamedTuple):
@@ -128,6 +130,12 @@ def kernel_arrays(system: System, dtype=None) -> tuple:
             f(s.load_u0), s.torque_dofs, s.border_off, s.border_map, s.elem_map, s.con_map_row,
             s.con_map_col, s.con_map_H, s.load_map)
 
+
+# Step matrices of at most this many unknowns are factored dense (kernels.dense): SuperLU's
+# set-up costs ~20 us per factorization, more than the elimination itself for a few dozen
+# unknowns. Measured per factorization plus one solve (SuperLU / dense): 17 unknowns 24 / 4.5
+# us, 29: 30 / 9, 53: 48 / 32, 65: 58 / 57, 123 (the morphing model): 59 / 78.
+DENSE_MAX = 60
 
 # SuperLU settings for the saddle-point matrix. The matrix is structurally nearly symmetric
 # (mass/stiffness blocks plus J and J^T), so a minimum-degree ordering of A^T + A in
@@ -219,15 +227,19 @@ class Stepper:
 
     def residual(self, z, qh, vh, t1, coef: StepCoefficients, R_hist, time_arrays=None):
         """Residual of the step at ``z = (a, lam/scale)`` (n,)."""
+        return self._residual(z, qh, vh, t1, coef, R_hist, time_arrays)[0]
+
+    def _residual(self, z, qh, vh, t1, coef, R_hist, time_arrays=None):
+        """``(R, |R|)`` of the step at ``z`` (``|R|`` is NaN or Inf if an entry is)."""
         dt = np.result_type(z.dtype, qh.dtype, R_hist.dtype)
         c, cd, cdd, F, T = time_arrays if time_arrays is not None else self.time_arrays(t1)
         R = np.empty(self.n, dtype=dt)
         # astype(copy=False): no copies in the Newton loop when the dtypes already agree
-        step_residual(self.S, z.astype(dt, copy=False), qh.astype(dt, copy=False),
-                      vh.astype(dt, copy=False), coef.bh2, coef.gh, self.scale,
-                      self._weights(coef), self.b0, self.b1, c, cd, cdd, F, T, self.n_dof,
-                      R_hist.astype(dt, copy=False), R)
-        return R
+        ssq = step_residual(self.S, z.astype(dt, copy=False), qh.astype(dt, copy=False),
+                            vh.astype(dt, copy=False), coef.bh2, coef.gh, self.scale,
+                            self._weights(coef), self.b0, self.b1, c, cd, cdd, F, T,
+                            self.n_dof, R_hist.astype(dt, copy=False), R)
+        return R, float(np.sqrt(ssq))
 
     def _fill(self, z, qh, vh, t1, coef, scale=None, F=None):
         sc = self.scale if scale is None else scale
@@ -245,13 +257,22 @@ class Stepper:
         return self._A
 
     def _lu(self):
-        """Factor the filled matrix (SuperLU, see :data:`SPLU_OPTIONS`).
+        """Factor the filled matrix: dense below :data:`DENSE_MAX` unknowns, else SuperLU
+        (:data:`SPLU_OPTIONS`).
 
         The first factorization computes the fill-reducing order ``q`` (minimum degree on
         A^T + A). The pattern is fixed, so later matrices are permuted symmetrically,
         ``B = A[q][:, q]``, by a precomputed gather of the CSC data and factored with
         ``permc_spec="NATURAL"``: same fill, without recomputing the ordering (measured 9.3 ms
         against 61 ms per factorization at 9033 unknowns, 0.9 against 1.9 ms at 933)."""
+        if self.n <= DENSE_MAX:
+            A = np.empty((self.n, self.n), dtype=self.dtype)
+            piv = np.empty(self.n, dtype=np.int64)
+            csc_to_dense(self.data, self.system.indices, self.system.indptr, A)
+            bad = lu_factor(A, piv)
+            if bad >= 0:
+                raise RuntimeError(f"Factor is exactly singular (pivot {bad})")
+            return _DenseLU(A, piv)
         if self._perm is None:
             lu = splu(self.matrix(), **SPLU_OPTIONS)
             q = np.argsort(lu.perm_c)  # position j of the factored matrix holds column q[j]
@@ -310,28 +331,23 @@ class Stepper:
         if s.newton == "modified" and coef is self.step_coef:
             return self._modified_newton(z, qh, vh, t1, coef, R_hist, step, ta)
         for it in range(1, s.max_iter + 1):
-            R = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
+            R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
             try:
                 lu = self.factor(z, qh, vh, t1, coef, F=F)
             except SingularMatrixError as err:
                 err.step = step
-                err.residual = float(np.linalg.norm(R))
+                err.residual = r_norm
                 err.dominant = self.dominant(R)
                 raise
-            dz = lu.solve(-R)
-            if not np.all(np.isfinite(dz)):
-                bad = self.non_finite(dz)
+            z, dz_max, finite = apply_correction(z, lu.solve(-R), self.n_dof)
+            if not finite:
+                bad = self.non_finite(z)
                 raise NonFiniteError(
                     f"non-finite Newton correction at t={t1:.6g} (step {step}) in "
-                    f"{', '.join(bad)}", time=t1, step=step,
-                    residual=float(np.linalg.norm(R)), dominant=bad)
-            z = z + dz
-            if coef.h == 0.0:
-                # linear in z (consistent initial accelerations): one solve is exact
-                err = 0.0
-            else:
-                err = coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
-            hist.append((float(np.linalg.norm(R)), err))
+                    f"{', '.join(bad)}", time=t1, step=step, residual=r_norm, dominant=bad)
+            # linear in z for the initial accelerations (h = 0): one solve is exact
+            err = 0.0 if coef.h == 0.0 else coef.bh2 * dz_max / L
+            hist.append((r_norm, err))
             if err <= s.tol:
                 # A complex-step run's imaginary part (the derivative) converges one Newton
                 # iteration behind the real part: polish removes that lag.
@@ -348,14 +364,14 @@ class Stepper:
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
     def _finite_residual(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
-        """The step residual; a NaN or Inf raises :class:`NonFiniteError` naming where."""
-        R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
-        if not np.all(np.isfinite(R)):
+        """``(R, |R|)`` of the step; a NaN or Inf raises :class:`NonFiniteError` naming where."""
+        R, r_norm = self._residual(z, qh, vh, t1, coef, R_hist, ta)
+        if not np.isfinite(r_norm):
             bad = self.non_finite(R)
             raise NonFiniteError(
                 f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
                 f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
-        return R
+        return R, r_norm
 
     def _modified_newton(self, z, qh, vh, t1, coef, R_hist, step, ta):
         """Newton with the factorization kept over iterations and steps (``newton="modified"``,
@@ -368,18 +384,18 @@ class Stepper:
         hist = []
         err_prev = None
         for it in range(1, s.max_iter + 1):
-            R = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
+            R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
             fresh = self._kept is None
             if fresh:
                 try:
                     self._kept = self.factor(z, qh, vh, t1, coef, F=ta[3])
                 except SingularMatrixError as err:
-                    err.step, err.residual = step, float(np.linalg.norm(R))
+                    err.step, err.residual = step, r_norm
                     err.dominant = self.dominant(R)
                     raise
             dz = self._kept.solve(-R)
             err = coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
-            hist.append((float(np.linalg.norm(R)), err))
+            hist.append((r_norm, err))
             if not np.isfinite(err):
                 self._kept = None
                 continue
@@ -463,6 +479,22 @@ class Stepper:
         q1, v1, g1 = newmark_update(coef, qh, vh, a, st.a, st.g)
         new = State(t1, q1, v1, a, z[self.n_dof:] * self.scale, g1)
         return new, lu, it, z, qh, vh, R_hist, hist
+
+
+class _DenseLU:
+    """Dense ``P A = L U`` of a small step matrix (:mod:`morphlab.kernels.dense`)."""
+
+    __slots__ = ("LU", "piv")
+
+    def __init__(self, LU, piv):
+        self.LU = LU
+        self.piv = piv
+
+    def solve(self, b):
+        dt = np.result_type(self.LU.dtype, b.dtype)
+        x = np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1)
+        dense_lu_solve(self.LU, self.piv, x)
+        return x.reshape(b.shape)
 
 
 class _NaturalFactor:

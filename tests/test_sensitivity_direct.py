@@ -201,7 +201,8 @@ def test_stress_and_node_position_derivatives_match_complex_step(runs):
 def _count_factorizations(monkeypatch):
     """Count every call of a sparse factorization or sparse direct solve, wherever bound
     (scipy itself and the names imported into the morphlab modules, including the SuperLU
-    entry point the solver calls directly, ``morphlab.solver._gstrf``)."""
+    entry point the solver calls directly, ``morphlab.solver._gstrf``, and the dense LU of small
+    step matrices, ``morphlab.solver.lu_factor``)."""
     calls = {"n": 0}
 
     def wrap(fn):
@@ -211,7 +212,7 @@ def _count_factorizations(monkeypatch):
         return counted
 
     for mod in (scipy.sparse.linalg, morphlab.solver, morphlab.sensitivity):
-        for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf"):
+        for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf", "lu_factor"):
             if getattr(mod, name, None) is not None:
                 monkeypatch.setattr(mod, name, wrap(getattr(mod, name)))
     return calls
