@@ -261,11 +261,12 @@ def case_variables(repeats: int, quick: bool) -> dict:
 
 # ---------------------------------------------------------------------------------------------
 _GROUPS = (
-    ("assembly kernels", ("add_residual", "fill_matrix")),
+    ("assembly kernels (residual, Newton matrix)",
+     ("step_residual", "step_matrix", "add_residual", "fill_matrix", "apply_correction")),
     ("sensitivity kernels (pseudo-loads, update, refinement residual)",
      ("state_loads", "explicit_loads", "update_sensitivities", "csc_residual")),
-    ("factorization", ("gstrf",)),
-    ("solves", ("'solve' of 'SuperLU'",)),
+    ("factorization", ("gstrf", "lu_factor", "csc_to_dense")),
+    ("solves", ("'solve' of 'SuperLU'", "dense.py:lu_solve")),
     ("sparse matrix construction", ("_compressed.py", "_csc.py", "_sputils.py", "_base.py")),
     ("compile (model -> arrays)", ("compile.py",)),
     ("time tables", ("time_table", "profiles.py")),
