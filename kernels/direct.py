@@ -241,15 +241,8 @@ def csc_residual(data, indices, indptr, x, b, r):
     returns ``(|r|_F, |b|_F)``."""
     n = indptr.shape[0] - 1
     n_x = x.shape[1]
-    for j in range(n):
-        for i in range(n_x):
-            r[j, i] = b[j, i]
-    for j in range(n):
-        for p in range(indptr[j], indptr[j + 1]):
-            row = indices[p]
-            aij = data[p]
-            for i in range(n_x):
-                r[row, i] -= aij * x[j, i]
+    r[:, :] = b
+    _subtract_product(data, indices, indptr, n, x, r)
     rr = 0.0
     bb = 0.0
     for j in range(n):
