@@ -402,15 +402,13 @@ def _pack_parts(parts: list) -> tuple:
     return tuple(out)
 
 
-def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress):
-    """Primal run with the direct-differentiation observer (per step: one compiled call for
-    the state part of the pseudo-loads and the exact converged matrix, one for the explicit
-    parts, one multi-right-hand-side solve, an optional refinement sweep and one compiled call
-    for the Newmark update; :mod:`morphlab.kernels.direct`)."""
+def _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method):
+    """What the pseudo-load kernels read, built once per run: the perturbed designs' arrays
+    stacked over the variables (``P``), the parts each changes (``parts``), the time tables
+    (``TAB`` per design, ``tab0`` nominal), the nominal arrays in the perturbation's dtype
+    (``S_nom``), the perturbations (``pert``) and the initial sensitivities ``dq_0, dv_0``."""
     n_x = len(names)
-    n_steps = settings.n_steps
-    n_dof, n_con, n = sys0.n_dof, sys0.n_con, sys0.n
-    times = settings.t_start + settings.h * np.arange(n_steps + 1)
+    times = settings.t_start + settings.h * np.arange(settings.n_steps + 1)
     if method == "direct":
         psys = perturbed_cs
         pert = np.full(n_x, 1j * CS_STEP)
@@ -424,9 +422,7 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
             psys.append(sp_)
         pert = np.array([steps[v] for v in names])
     dt_ = np.complex128 if method == "direct" else np.float64
-    # nominal arrays in the perturbation's dtype (integer tables shared); perturbed designs
-    # stacked for the batched kernel; the parts each design changes
-    S_nom = kernel_arrays(sys0, dt_)
+    S_nom = kernel_arrays(sys0, dt_)  # integer tables shared with the primal's
     S_all = [kernel_arrays(s, dt_) for s in psys]
     P = tuple(np.ascontiguousarray(np.stack([Sk[k] for Sk in S_all])) for k in PERTURBED)
     shared: dict = {}
@@ -436,18 +432,34 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
                          for Sk, tb in zip(S_all, tables)])
     TAB = tuple(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
                 for k in range(5))  # (n_t, n_x, ...)
+    if method == "direct":
+        dq0 = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
+        dv0 = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
+    else:
+        dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
+        dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
+    return dict(S_nom=S_nom, P=P, parts=parts, TAB=TAB, tab0=tab0, pert=pert, dtype=dt_,
+                dq0=dq0, dv0=dv0)
+
+
+def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress):
+    """Primal run with the direct-differentiation observer (per step: one compiled call for
+    the state part of the pseudo-loads and the exact converged matrix, one for the explicit
+    parts, one multi-right-hand-side solve, an optional refinement sweep and one compiled call
+    for the Newmark update; :mod:`morphlab.kernels.direct`)."""
+    n_x = len(names)
+    n_steps = settings.n_steps
+    n_dof, n_con, n = sys0.n_dof, sys0.n_con, sys0.n
+    data = _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method)
+    S_nom, P, parts, TAB, tab0, pert = (data[k] for k in ("S_nom", "P", "parts", "TAB", "tab0",
+                                                           "pert"))
     shape = (n_steps + 1, n_dof, n_x)
     D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
          "g": np.zeros(shape), "lam": np.zeros((n_steps + 1, n_con, n_x))}
-    if method == "direct":
-        D["q"][0] = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
-        D["v"][0] = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
-    else:
-        D["q"][0] = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
-        D["v"][0] = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
+    D["q"][0], D["v"][0] = data["dq0"], data["dv0"]
     hist = (D["q"], D["v"], D["a"], D["g"], D["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
-    work = np.zeros((2, n), dtype=dt_)
+    work = np.zeros((2, n), dtype=data["dtype"])
     mats = np.zeros((6, sys0.nnz))
     J = np.zeros(sys0.nnz)
     rhs = np.zeros((n, n_x))
