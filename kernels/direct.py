@@ -95,13 +95,14 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     for p in range(J.shape[0]):
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
     h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
+    kg = k % DG.shape[0]  # DG may keep only the last levels (see update_sensitivities)
     dqh = np.empty((n_dof, n_x))
     dvh = np.empty((n_dof, n_x))
     for r in range(n_dof):
         for i in range(n_x):
             dqh[r, i] = (DQ[k, r, i] + h * DV[k, r, i] + cqa * DA[k, r, i]
-                         + cqg * DG[k, r, i])
-            dvh[r, i] = DV[k, r, i] + cva * DA[k, r, i] + cvg * DG[k, r, i]
+                         + cqg * DG[kg, r, i])
+            dvh[r, i] = DV[k, r, i] + cva * DA[k, r, i] + cvg * DG[kg, r, i]
     rhs[:, :] = 0.0
     _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
     _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
@@ -206,8 +207,11 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
 def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
     """Store the step's solution ``x = (da, dlam/scale)`` (n, n_x) as entry ``n`` of the
     histories and advance ``dq, dv, dg`` by the Newmark update from entry ``n - 1``
-    (``n == 0``: the initial solve, which sets ``da, dg, dlam`` only)."""
+    (``n == 0``: the initial solve, which sets ``da, dg, dlam`` only). ``DG`` (the algorithmic
+    acceleration, needed only by the next step) may hold just two levels: entry ``n`` is
+    ``DG[n % len(DG)]``."""
     n_x = x.shape[1]
+    n_g = DG.shape[0]
     n_con = DLAM.shape[1]
     if n == 0:
         for r in range(n_dof):
@@ -225,10 +229,10 @@ def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
         for i in range(n_x):
             da = x[r, i]
             a0 = DA[m, r, i]
-            g0 = DG[m, r, i]
+            g0 = DG[m % n_g, r, i]
             DQ[n, r, i] = (DQ[m, r, i] + h * DV[m, r, i] + cqa * a0 + cqg * g0 + bh2 * da)
             DV[n, r, i] = DV[m, r, i] + cva * a0 + cvg * g0 + gh * da
-            DG[n, r, i] = ga * da + gan * a0 + ggn * g0
+            DG[n % n_g, r, i] = ga * da + gan * a0 + ggn * g0
             DA[n, r, i] = da
     for r in range(n_con):
         for i in range(n_x):

@@ -454,10 +454,12 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
     S_nom, P, parts, TAB, tab0, pert = (data[k] for k in ("S_nom", "P", "parts", "TAB", "tab0",
                                                            "pert"))
     shape = (n_steps + 1, n_dof, n_x)
+    # histories the responses can read; the algorithmic acceleration only for the last step
     D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
-         "g": np.zeros(shape), "lam": np.zeros((n_steps + 1, n_con, n_x))}
+         "lam": np.zeros((n_steps + 1, n_con, n_x))}
     D["q"][0], D["v"][0] = data["dq0"], data["dv0"]
-    hist = (D["q"], D["v"], D["a"], D["g"], D["lam"])
+    dg = np.zeros((2, n_dof, n_x))
+    hist = (D["q"], D["v"], D["a"], dg, D["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
     work = np.zeros((2, n), dtype=data["dtype"])
     mats = np.zeros((6, sys0.nnz))

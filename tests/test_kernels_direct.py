@@ -65,3 +65,22 @@ def test_csc_residual_is_b_minus_Ax():
     np.testing.assert_allclose(r, b - A @ x, rtol=1e-13, atol=1e-13)
     assert rr == pytest.approx(np.linalg.norm(b - A @ x), rel=1e-13)
     assert bb == pytest.approx(np.linalg.norm(b), rel=1e-13)
+
+
+def test_two_level_buffer_of_the_algorithmic_acceleration():
+    """DG with two levels (what a direct run keeps) gives the same update as a full history."""
+    rng = np.random.default_rng(8)
+    coef = step_coefficients("arnold-bruls", GeneralizedAlpha(0.8), 1e-3)
+    n_t, n_dof, n_con, n_x = 5, 6, 2, 3
+    full = [rng.normal(size=(n_t, n_dof, n_x)) for _ in range(4)]
+    full.append(rng.normal(size=(n_t, n_con, n_x)))
+    ring = [h.copy() for h in full]
+    ring[3] = np.stack([full[3][4], full[3][3]])  # levels 4, 3 stored at 4 % 2, 3 % 2
+    x = rng.normal(size=(n_dof + n_con, n_x))
+    pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
+    upd = np.array(coef.upd)
+    update_sensitivities(*full, 4, x, 1.5, n_dof, pc, upd)
+    update_sensitivities(*ring, 4, x, 1.5, n_dof, pc, upd)
+    np.testing.assert_array_equal(ring[3][0], full[3][4])  # new level written at 4 % 2
+    np.testing.assert_array_equal(ring[0][4], full[0][4])
+    np.testing.assert_array_equal(ring[1][4], full[1][4])
