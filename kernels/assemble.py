@@ -26,7 +26,8 @@ def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cd
     Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext)``;
     constraint rows: ``scale (wcm J a - wcf F_c)`` (paper eq. 25–26 for one time level).
     """
-    parts = (np.arange(S[1].shape[0]), np.arange(S[10].shape[0]), np.arange(S[14].shape[0]),
+    parts = (np.arange(S[1].shape[0]), np.arange(S[10].shape[0]),
+             np.ones(S[5].shape[0], dtype=np.bool_), np.arange(S[14].shape[0]),
              np.arange(S[17].shape[0]), np.arange(S[19].shape[0]))
     add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
                        F, T, n_dof, R)
@@ -35,14 +36,15 @@ def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cd
 @njit(cache=True)
 def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
                        F, T, n_dof, R):
-    """:func:`add_residual` over the listed parts only: ``parts = (bodies, elements, constraint
-    rows, loads, torques)`` (int64 index arrays). The sensitivity pseudo-loads evaluate the parts
-    a design variable changes (``morphlab.kernels.direct``)."""
+    """:func:`add_residual` over the listed parts only: ``parts = (bodies, elements, flexible
+    coordinates (bool mask), constraint rows, loads, torques)`` (int64 index arrays but the
+    mask). The sensitivity pseudo-loads evaluate the parts a design variable changes
+    (``morphlab.kernels.direct``)."""
     body_residual(q, v, a, wm, wf, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7], S[8],
-                  S[9], S[10], S[11], S[12], S[13], parts[0], parts[1], R)
+                  S[9], S[10], S[11], S[12], S[13], parts[0], parts[1], parts[2], R)
     constraint_residual(q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
-                        S[14], S[15], S[16], parts[2], n_dof, R)
-    load_residual(q, wf, F, S[17], S[18], T, S[19], parts[3], parts[4], R)
+                        S[14], S[15], S[16], parts[3], n_dof, R)
+    load_residual(q, wf, F, S[17], S[18], T, S[19], parts[4], parts[5], R)
 
 
 @njit(cache=True)

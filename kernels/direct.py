@@ -151,9 +151,9 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
         Nominal system arrays in the dtype of ``work``.
     P : tuple
         The arrays of ``S`` at positions :data:`PERTURBED`, stacked over the n_x designs.
-    parts : tuple of 10 int64 arrays
-        ``(offsets, indices)`` of the bodies, elements, constraint rows, loads and torques each
-        variable changes (CSR layout over the variables).
+    parts : tuple of 12 int64 arrays
+        ``(offsets, indices)`` of the bodies, elements, flexible coordinates, constraint rows,
+        loads and torques each variable changes (CSR layout over the variables).
     q1, v1, a1, l1 / q0, v0, a0, l0 : float64
         Converged states at ``t_{n+1}`` and ``t_n`` (the latter used when ``has_old``).
     TAB : tuple ``(C, CD, CDD, F, T)`` with leading axes (n_t, n_x)
@@ -170,16 +170,20 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     n = rhs.shape[0]
     s1 = (q1.astype(dt), v1.astype(dt), a1.astype(dt), l1.astype(dt))
     s0 = (q0.astype(dt), v0.astype(dt), a0.astype(dt), l0.astype(dt))
-    b_off, b_idx, e_off, e_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
+    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
+    flex_on = np.zeros(S[5].shape[0], dtype=np.bool_)
     for i in range(n_x):
-        pi = (b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]],
+        pi = (b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
               c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
               t_idx[t_off[i]:t_off[i + 1]])
-        if (pi[0].size + pi[1].size + pi[2].size + pi[3].size + pi[4].size) == 0:
+        if (pi[0].size + pi[3].size + pi[4].size + pi[5].size) == 0:
             continue  # the variable changes only the initial state
+        flex = f_idx[f_off[i]:f_off[i + 1]]
+        for k in flex:
+            flex_on[k] = True
         tai_old = (TAB[0][k_old, i], TAB[1][k_old, i], TAB[2][k_old, i], TAB[3][k_old, i],
                    TAB[4][k_old, i])
         tai_new = (TAB[0][k_new, i], TAB[1][k_new, i], TAB[2][k_new, i], TAB[3][k_new, i],
@@ -201,6 +205,8 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
             h = pert[i].imag
             for r in range(n):
                 rhs[r, i] -= R[r].imag / h
+        for k in flex:
+            flex_on[k] = False
 
 
 @njit(cache=True)

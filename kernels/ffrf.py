@@ -114,10 +114,12 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
 
 
 @njit(cache=True)
-def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af, Mq, Sq):
+def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af, Mq, Sq,
+               flex_on):
     """Reductions over a body's flex coordinates shared by residual and Jacobian:
     ``c_u`` (2), ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``,
-    ``q_f^T M q_f``, ``q_f^T M q_f'``, ``I_0ĨS.a_f`` and ``(S̃ q_f).a_f``."""
+    ``q_f^T M q_f``, ``q_f^T M q_f'``, ``I_0ĨS.a_f`` and ``(S̃ q_f).a_f``, over the
+    coordinates with ``flex_on`` set (all of them but in a sensitivity pseudo-load)."""
     m = body_scal[b, 0]
     cux = body_scal[b, 1]
     cuy = body_scal[b, 2]
@@ -132,6 +134,8 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
     i0is_a = 0.0 * m
     sq_a = 0.0 * m
     for k in range(flex_off[b], flex_off[b + 1]):
+        if not flex_on[k]:
+            continue
         cux += flex_IS[k, 0] * qf[k]
         cuy += flex_IS[k, 1] * qf[k]
         isax += flex_IS[k, 0] * af[k]
@@ -151,7 +155,7 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
 def body_residual(
     q, v, a, wm, wf, gravity,
     body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
-    elem_body, elem_fdof, elem_M, elem_St, elem_K, bodies, elems, R,
+    elem_body, elem_fdof, elem_M, elem_St, elem_K, bodies, elems, flex_on, R,
 ):
     """Add the bodies' ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
 
@@ -163,11 +167,12 @@ def body_residual(
         Weights of the inertia term and of the force terms.
     gravity : (2,)
         Gravitational acceleration [length/time²].
-    bodies, elems : int64 arrays
-        The bodies and elements evaluated: all of them for the residual. A sensitivity
-        pseudo-load passes only those whose data a design variable changes; with a real state
-        the skipped parts carry no imaginary part (complex step) and cancel in a difference, so
-        the derivative is exact although the real part is not the residual's.
+    bodies, elems : int64 arrays; flex_on : (n_flex,) bool
+        The bodies, elements and flexible coordinates evaluated: all of them for the residual.
+        A sensitivity pseudo-load passes only those whose data a design variable changes (and
+        the coordinates of its elements); with a real state the skipped parts carry no
+        imaginary part (complex step) and cancel in a difference, so the derivative is exact
+        although the real part is not the residual's.
     R : (>= n_dof,), in/out
         Residual; the body rows are added to.
     """
@@ -192,7 +197,7 @@ def body_residual(
         s = np.sin(th)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
          sq_a) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
-                            Mq, Sq)
+                            Mq, Sq, flex_on)
         # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
         Acx = c * cux - s * cuy
         Acy = s * cux + c * cuy
@@ -224,6 +229,8 @@ def body_residual(
         ATgx = c * gx + s * gy
         ATgy = -s * gx + c * gy
         for k in range(flex_off[b], flex_off[b + 1]):
+            if not flex_on[k]:
+                continue
             i = flex_dof[k]
             isx = flex_IS[k, 0]
             isy = flex_IS[k, 1]
@@ -267,6 +274,7 @@ def body_jacobian(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
         np.arange(elem_fdof.shape[0]), n_flex, True
     )
+    all_flex = np.ones(n_flex, dtype=np.bool_)
     gx = gravity[0]
     gy = gravity[1]
     blk = np.zeros((3, 3), dtype=data.dtype)
@@ -282,7 +290,7 @@ def body_jacobian(
         s = np.sin(th)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
          _) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
-                            Mq, Sq)
+                            Mq, Sq, all_flex)
         Acx = c * cux - s * cuy
         Acy = s * cux + c * cuy
         AIcx = -Acy

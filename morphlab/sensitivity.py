@@ -367,33 +367,40 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
 
 
 def _variable_parts(sys0: System, S0: tuple, Si: tuple, tab0: tuple, tabi: tuple) -> tuple:
-    """The bodies, elements, constraint rows, loads and torques whose data differ between the
-    nominal arrays ``S0`` / time table ``tab0`` and a perturbed design's ``Si`` / ``tabi``:
-    the parts its explicit pseudo-load must evaluate (:mod:`morphlab.kernels.direct`)."""
+    """The bodies, elements, flexible coordinates, constraint rows, loads and torques whose
+    data differ between the nominal arrays ``S0`` / time table ``tab0`` and a perturbed
+    design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must evaluate
+    (:mod:`morphlab.kernels.direct`). A changed element brings its body and its coordinates."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
     damp = _changed(Si[3], S0[3])
     elem = (_changed(Si[11], S0[11]) | _changed(Si[12], S0[12]) | _changed(Si[13], S0[13])
             | damp[sys0.elem_body]) if n_elem else np.zeros(0, bool)
     flex = _changed(Si[6], S0[6]) | _changed(Si[7], S0[7]) | _changed(Si[8], S0[8])
+    fdof = sys0.elem_fdof[elem]
+    flex[fdof[fdof >= 0]] = True
     body = _changed(Si[2], S0[2]) | damp
-    if np.any(Si[0] != S0[0]):  # gravity acts on every body
+    if np.any(Si[0] != S0[0]):  # gravity acts on every body and every coordinate
         body[:] = True
+        flex[:] = True
     for b in range(n_body):
         lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
         body[b] |= bool(flex[lo:hi].any())
+        if damp[b]:
+            flex[lo:hi] = True
     body[sys0.elem_body[elem]] = True
     # time tables (n_t, ...): a row changes if it changes at any time
     rows = (_changed(Si[16], S0[16]) | _changed(tabi[0], tab0[0], 1)
             | _changed(tabi[1], tab0[1], 1) | _changed(tabi[2], tab0[2], 1))
     loads = _changed(Si[18], S0[18]) | _changed(tabi[3], tab0[3], 1)
     torques = _changed(tabi[4], tab0[4], 1)
-    return tuple(np.flatnonzero(m).astype(np.int64) for m in (body, elem, rows, loads, torques))
+    return tuple(np.flatnonzero(m).astype(np.int64)
+                 for m in (body, elem, flex, rows, loads, torques))
 
 
 def _pack_parts(parts: list) -> tuple:
     """Per-variable index lists as ``(offsets, indices)`` pairs (CSR over the variables)."""
     out = []
-    for kind in range(5):
+    for kind in range(6):
         lists = [p[kind] for p in parts]
         off = np.zeros(len(lists) + 1, dtype=np.int64)
         off[1:] = np.cumsum([len(x) for x in lists])

@@ -184,7 +184,7 @@ def residual(system, q, v, a, wm, wf, gravity=GRAVITY, stiffness=True):
     R = np.zeros(system.n_dof, dtype=dt)
     ffrf.body_residual(q.astype(dt), v.astype(dt), a.astype(dt), wm, wf,
                        np.asarray(gravity, dtype=dt), *args, np.arange(len(system.body_ref)),
-                       np.arange(len(system.elem_body)), R)
+                       np.arange(len(system.elem_body)), np.ones(len(system.flex_dof), bool), R)
     return R
 
 
