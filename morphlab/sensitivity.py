@@ -343,15 +343,18 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
                              _perturbed=perturbed, _steps=steps)
 
 
-# SuperLU's multi-right-hand-side solve calls threaded BLAS; with more than about a dozen
-# columns OpenBLAS threading made each solve ~15x slower on the 2-core test machine (3 ms
-# instead of 0.2 ms at n_x = 15). Blocks of at most this many columns avoid it.
-SOLVE_BLOCK = 8
+# Column blocks for the multi-right-hand-side solve (None: all columns in one call). An
+# earlier session measured SuperLU's solve ~15x slower with more than about a dozen columns
+# (OpenBLAS threading on this 2-core machine, 3 ms instead of 0.2 ms at n_x = 15) and solved in
+# blocks of 8; re-measured 2026-11-21 (SciPy 1.17, OpenBLAS 0.3.31), also with the second
+# core busy, one call is faster at every width: 12 columns 30 vs 45 us, 50 columns at 60
+# elements 153 vs 259 us. Set an int here if the slowdown shows up again.
+SOLVE_BLOCK: int | None = None
 
 
 def _solve(lu, b):
-    """``lu.solve`` for many right-hand sides, in column blocks of at most SOLVE_BLOCK."""
-    if b.ndim == 1 or b.shape[1] <= SOLVE_BLOCK:
+    """``lu.solve`` for many right-hand sides (in column blocks of SOLVE_BLOCK if set)."""
+    if SOLVE_BLOCK is None or b.ndim == 1 or b.shape[1] <= SOLVE_BLOCK:
         return lu.solve(b)
     return np.concatenate([lu.solve(np.ascontiguousarray(b[:, k:k + SOLVE_BLOCK]))
                            for k in range(0, b.shape[1], SOLVE_BLOCK)], axis=1)
