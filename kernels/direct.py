@@ -95,14 +95,16 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     for p in range(J.shape[0]):
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
     h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
-    kg = k % DG.shape[0]  # DG may keep only the last levels (see update_sensitivities)
+    # each history may keep only its last levels (see update_sensitivities)
+    kq, kv, ka, kg, kl = (k % DQ.shape[0], k % DV.shape[0], k % DA.shape[0], k % DG.shape[0],
+                          k % DLAM.shape[0])
     dqh = np.empty((n_dof, n_x))
     dvh = np.empty((n_dof, n_x))
     for r in range(n_dof):
         for i in range(n_x):
-            dqh[r, i] = (DQ[k, r, i] + h * DV[k, r, i] + cqa * DA[k, r, i]
+            dqh[r, i] = (DQ[kq, r, i] + h * DV[kv, r, i] + cqa * DA[ka, r, i]
                          + cqg * DG[kg, r, i])
-            dvh[r, i] = DV[k, r, i] + cva * DA[k, r, i] + cvg * DG[kg, r, i]
+            dvh[r, i] = DV[kv, r, i] + cva * DA[ka, r, i] + cvg * DG[kg, r, i]
     rhs[:, :] = 0.0
     _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
     _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
@@ -113,12 +115,12 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
         x0 = np.empty((n_dof + n_con, n_x))
         for r in range(n_dof):
             for i in range(n_x):
-                x0[r, i] = DA[k, r, i]
+                x0[r, i] = DA[ka, r, i]
         for r in range(n_con):
             for i in range(n_x):
-                x0[n_dof + r, i] = DLAM[k, r, i] / scale
-        _subtract_product(Dq, indices, indptr, n_dof, DQ[k], rhs)
-        _subtract_product(Dv, indices, indptr, n_dof, DV[k], rhs)
+                x0[n_dof + r, i] = DLAM[kl, r, i] / scale
+        _subtract_product(Dq, indices, indptr, n_dof, DQ[kq], rhs)
+        _subtract_product(Dv, indices, indptr, n_dof, DV[kv], rhs)
         _subtract_product(D0, indices, indptr, n_dof + n_con, x0, rhs)
 
 
@@ -213,11 +215,11 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
 def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
     """Store the step's solution ``x = (da, dlam/scale)`` (n, n_x) as entry ``n`` of the
     histories and advance ``dq, dv, dg`` by the Newmark update from entry ``n - 1``
-    (``n == 0``: the initial solve, which sets ``da, dg, dlam`` only). ``DG`` (the algorithmic
-    acceleration, needed only by the next step) may hold just two levels: entry ``n`` is
-    ``DG[n % len(DG)]``."""
+    (``n == 0``: the initial solve, which sets ``da, dg, dlam`` only). A history the caller
+    does not keep may hold just two levels: entry ``n`` of ``X`` is ``X[n % len(X)]`` (``DG``,
+    the algorithmic acceleration, is only needed by the next step)."""
     n_x = x.shape[1]
-    n_g = DG.shape[0]
+    nq, nv, na, n_g, nl = DQ.shape[0], DV.shape[0], DA.shape[0], DG.shape[0], DLAM.shape[0]
     n_con = DLAM.shape[1]
     if n == 0:
         for r in range(n_dof):
@@ -231,18 +233,20 @@ def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
     h, cqa, cqg, cva, cvg, bh2, gh = pc[0], pc[1], pc[2], pc[3], pc[4], pc[5], pc[6]
     ga, gan, ggn = upd[0], upd[1], upd[2]
     m = n - 1
+    qn, qm, vn, vm, an, am = n % nq, m % nq, n % nv, m % nv, n % na, m % na
+    gn, gm, ln = n % n_g, m % n_g, n % nl
     for r in range(n_dof):
         for i in range(n_x):
             da = x[r, i]
-            a0 = DA[m, r, i]
-            g0 = DG[m % n_g, r, i]
-            DQ[n, r, i] = (DQ[m, r, i] + h * DV[m, r, i] + cqa * a0 + cqg * g0 + bh2 * da)
-            DV[n, r, i] = DV[m, r, i] + cva * a0 + cvg * g0 + gh * da
-            DG[n % n_g, r, i] = ga * da + gan * a0 + ggn * g0
-            DA[n, r, i] = da
+            a0 = DA[am, r, i]
+            g0 = DG[gm, r, i]
+            DQ[qn, r, i] = DQ[qm, r, i] + h * DV[vm, r, i] + cqa * a0 + cqg * g0 + bh2 * da
+            DV[vn, r, i] = DV[vm, r, i] + cva * a0 + cvg * g0 + gh * da
+            DG[gn, r, i] = ga * da + gan * a0 + ggn * g0
+            DA[an, r, i] = da
     for r in range(n_con):
         for i in range(n_x):
-            DLAM[n, r, i] = x[n_dof + r, i] * scale
+            DLAM[ln, r, i] = x[n_dof + r, i] * scale
 
 
 @njit(cache=True)

@@ -64,6 +64,7 @@ from .timeloop import StepInfo, integrate
 # correction (relative to the model size) exceeds this: below it, the lagged LU's relative
 # error O(|dz|) is already under the 1e-8 accuracy the sensitivities are verified to.
 REFINE_TOL = 1e-12
+HISTORIES = ("q", "v", "a", "lam")
 METHODS = ("direct", "direct-fd", "complex-step", "forward-difference", "central-difference")
 CS_STEP = 1e-30
 
@@ -143,6 +144,10 @@ def _lazy_history(name: str) -> property:
         arr = self._histories.get(name)
         if arr is None:
             base, d, col = self._source
+            if name not in d:
+                raise SensitivityError(
+                    f"the sensitivity history of {name!r} was not kept (kept: {sorted(d)}); "
+                    f"run sensitivities(..., store='all') or store=(..., {name!r})")
             arr = getattr(base, name) + 1j * CS_STEP * d[name][:, :, col]
             self._histories[name] = arr
         return arr
@@ -227,7 +232,7 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
                   variables: list | None = None, step: float = 1e-6, tol: float = 1e-10,
                   max_iter: int = 12, stabilization: float = 0.5,
                   stabilization_damping: float = 1.0, constraint_form: str = "paper",
-                  scheme: str = "arnold-bruls", refine: int = 1,
+                  scheme: str = "arnold-bruls", refine: int = 1, store="auto",
                   progress: bool = False) -> SensitivityResult:
     """Values and design gradients of ``responses`` of the model ``build(p0)``.
 
@@ -254,6 +259,12 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     refine : int
         Iterative-refinement sweeps of the direct solve against the exact converged matrix
         (each contracts the error by O(last Newton correction) <= 1e-10: one is enough).
+    store : "auto", "all" or tuple of {"q", "v", "a", "lam"}
+        Direct methods: the sensitivity histories kept for every step, (n_t, ..., n_x) each
+        (the others keep only the two levels the time stepping needs). ``"auto"`` keeps those
+        the responses read, found by calling them once on a two-step probe of the nominal
+        model (all four if a response fails there); ``"all"`` keeps all four. What is kept is
+        what :meth:`SensitivityResult.derivative` can differentiate afterwards.
     progress : bool
         Print a progress bar.
 
@@ -280,6 +291,10 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     for k, fn in responses.items():
         if not callable(fn):
             raise SensitivityError(f"response {k!r} is not callable")
+    if not (store in ("auto", "all") or (isinstance(store, (tuple, list)) and store
+                                         and set(store) <= set(HISTORIES))):
+        raise SensitivityError(f"store must be 'auto', 'all' or a non-empty tuple of "
+                               f"{HISTORIES}, got {store!r}")
     if not (isinstance(step, float) and 0 < step < 1):
         raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
     settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
@@ -307,8 +322,9 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     t_setup = _time.perf_counter() - t_start
 
     if method in ("direct", "direct-fd"):
+        kept = _histories_to_store(store, responses, sys0, settings)
         out = _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine,
-                      progress)
+                      progress, kept)
     elif method == "complex-step":
         out = _complex_step(sys0, settings, names, perturbed_cs, progress)
     else:
@@ -412,6 +428,48 @@ def _pack_parts(parts: list) -> tuple:
     return tuple(out)
 
 
+class _ProbeResult(Result):
+    """A two-step Result of the nominal model (initial state, zero rates) that records which
+    histories are read: what a direct run must keep for the responses."""
+
+    def __init__(self, system: System, settings: Settings):
+        self.read: set = set()
+        n_dof, n_con = system.n_dof, system.n_con
+        q = np.repeat(np.real(system.q0)[None, :], 2, axis=0)
+        zeros = np.zeros((2, n_dof))
+        self._h = {"q": q, "v": zeros, "a": zeros, "lam": np.zeros((2, n_con))}
+        super().__init__(system=system, settings=settings,
+                         t=settings.t_start + settings.h * np.arange(2.0), q=None, v=None,
+                         a=None, lam=None, newton_iterations=np.ones(2, dtype=np.int64),
+                         constraint_violation=np.zeros(2), velocity_violation=np.zeros(2))
+
+    def _get(self, name):
+        self.read.add(name)
+        return self._h[name]
+
+    q = property(lambda self: self._get("q"), lambda self, value: None)
+    v = property(lambda self: self._get("v"), lambda self, value: None)
+    a = property(lambda self: self._get("a"), lambda self, value: None)
+    lam = property(lambda self: self._get("lam"), lambda self, value: None)
+
+
+def _histories_to_store(store, responses: Mapping, system: System, settings: Settings) -> tuple:
+    """The sensitivity histories a direct run keeps in full (see ``store`` of
+    :func:`sensitivities`)."""
+    if store == "all":
+        return HISTORIES
+    if store != "auto":
+        return tuple(h for h in HISTORIES if h in store)
+    probe = _ProbeResult(system, settings)
+    try:
+        with np.errstate(all="ignore"):
+            for fn in responses.values():
+                fn(probe)
+    except Exception:  # a response that cannot run on the probe: keep everything
+        return HISTORIES
+    return tuple(h for h in HISTORIES if h in probe.read)
+
+
 def _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method):
     """What the pseudo-load kernels read, built once per run: the perturbed designs' arrays
     stacked over the variables (``P``), the parts each changes (``parts``), the time tables
@@ -452,7 +510,8 @@ def _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, met
                 dq0=dq0, dv0=dv0)
 
 
-def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress):
+def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress,
+            kept=HISTORIES):
     """Primal run with the direct-differentiation observer (per step: one compiled call for
     the state part of the pseudo-loads and the exact converged matrix, one for the explicit
     parts, one multi-right-hand-side solve, an optional refinement sweep and one compiled call
@@ -463,13 +522,17 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
     data = _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method)
     S_nom, P, parts, TAB, tab0, pert = (data[k] for k in ("S_nom", "P", "parts", "TAB", "tab0",
                                                            "pert"))
-    shape = (n_steps + 1, n_dof, n_x)
-    # histories the responses can read; the algorithmic acceleration only for the last step
-    D = {"q": np.zeros(shape), "v": np.zeros(shape), "a": np.zeros(shape),
-         "lam": np.zeros((n_steps + 1, n_con, n_x))}
-    D["q"][0], D["v"][0] = data["dq0"], data["dv0"]
+    # histories kept in full: those in ``kept``; the others (and the algorithmic
+    # acceleration) hold the last two levels, all the time stepping reads
+    def history(name, width):
+        return np.zeros(((n_steps + 1) if name in kept else 2, width, n_x))
+
+    full = {"q": history("q", n_dof), "v": history("v", n_dof), "a": history("a", n_dof),
+            "lam": history("lam", n_con)}
+    full["q"][0], full["v"][0] = data["dq0"], data["dv0"]
     dg = np.zeros((2, n_dof, n_x))
-    hist = (D["q"], D["v"], D["a"], dg, D["lam"])
+    D = {k: full[k] for k in HISTORIES if k in kept}
+    hist = (full["q"], full["v"], full["a"], dg, full["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
     work = np.zeros((2, n), dtype=data["dtype"])
     mats = np.zeros((6, sys0.nnz))

@@ -132,7 +132,8 @@ CASES = ("pendulum", "mechanism")
 @pytest.fixture(scope="module", params=CASES)
 def runs(request):
     build, p0, resp = responses_for(request.param)
-    direct = ml.sensitivities(build, p0, resp, method="direct", **RUN)
+    # store="all": the history tests below compare every sensitivity history
+    direct = ml.sensitivities(build, p0, resp, method="direct", store="all", **RUN)
     reference = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
     return request.param, build, p0, direct, reference
 
@@ -269,3 +270,21 @@ def test_refinement_residuals_at_round_off(name):
     # with tol=1e-10 several steps of these runs stop with a correction above 1e-12 (9 and 5)
     assert len(res) == sens.stats["refined_steps"] > 0
     assert max(res) < 1e-12
+
+
+def test_store_auto_keeps_the_histories_the_responses_read():
+    """``store="auto"`` probes the responses: positions and a reaction need q and lam only; the
+    gradients are the same as with every history kept (the others still advance, over two
+    levels), and differentiating an unkept history afterwards names what to do."""
+    build, p0, resp = responses_for("pendulum")
+    auto = ml.sensitivities(build, p0, resp, method="direct", **RUN)
+    assert sorted(auto.state) == ["lam", "q"]
+    full = ml.sensitivities(build, p0, resp, method="direct", store="all", **RUN)
+    for r in resp:
+        for v in p0:
+            assert auto.gradients[r][v] == full.gradients[r][v]
+    np.testing.assert_array_equal(auto.state["q"], full.state["q"])
+    with pytest.raises(ml.SensitivityError, match="store='all'"):
+        auto.derivative(lambda res: res.v[-1])
+    with pytest.raises(ml.SensitivityError, match="store"):
+        ml.sensitivities(build, p0, resp, method="direct", store=("q", "x"), **RUN)
