@@ -86,7 +86,8 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     ``(q1, v1, a1, l1)``: the converged state at ``t_{n+1}``; ``(q0, v0, a0, l0)``: the state
     at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F`` (n_t, n_load, 2):
     the point forces at every time; ``k_new`` and ``k``: the time indices of ``t_{n+1}`` and
-    ``t_n``; ``DQ ... DLAM``: the sensitivity histories (entry ``k`` is the old level);
+    ``t_n``; ``DQ ... DLAM``: the sensitivity histories, (n_x, levels, width), level ``k`` is
+    the old one;
     ``mats`` (6, nnz): scratch for the split matrices of both levels. All float64.
     """
     n_x = rhs.shape[1]
@@ -96,31 +97,30 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
     h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
     # each history may keep only its last levels (see update_sensitivities)
-    kq, kv, ka, kg, kl = (k % DQ.shape[0], k % DV.shape[0], k % DA.shape[0], k % DG.shape[0],
-                          k % DLAM.shape[0])
+    kq, kv, ka, kg, kl = (k % DQ.shape[1], k % DV.shape[1], k % DA.shape[1], k % DG.shape[1],
+                          k % DLAM.shape[1])
     dqh = np.empty((n_dof, n_x))
     dvh = np.empty((n_dof, n_x))
-    for r in range(n_dof):
-        for i in range(n_x):
-            dqh[r, i] = (DQ[kq, r, i] + h * DV[kv, r, i] + cqa * DA[ka, r, i]
-                         + cqg * DG[kg, r, i])
-            dvh[r, i] = DV[kv, r, i] + cva * DA[ka, r, i] + cvg * DG[kg, r, i]
+    for i in range(n_x):
+        for r in range(n_dof):
+            dqh[r, i] = (DQ[i, kq, r] + h * DV[i, kv, r] + cqa * DA[i, ka, r]
+                         + cqg * DG[i, kg, r])
+            dvh[r, i] = DV[i, kv, r] + cva * DA[i, ka, r] + cvg * DG[i, kg, r]
     rhs[:, :] = 0.0
     _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
     _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
     if has_old:
         D0, Dq, Dv = mats[3], mats[4], mats[5]
         split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F[k], D0, Dq, Dv)
-        n_con = DLAM.shape[1]
+        n_con = DLAM.shape[2]
         x0 = np.empty((n_dof + n_con, n_x))
-        for r in range(n_dof):
-            for i in range(n_x):
-                x0[r, i] = DA[ka, r, i]
-        for r in range(n_con):
-            for i in range(n_x):
-                x0[n_dof + r, i] = DLAM[kl, r, i] / scale
-        _subtract_product(Dq, indices, indptr, n_dof, DQ[kq], rhs)
-        _subtract_product(Dv, indices, indptr, n_dof, DV[kv], rhs)
+        for i in range(n_x):
+            for r in range(n_dof):
+                x0[r, i] = DA[i, ka, r]
+            for r in range(n_con):
+                x0[n_dof + r, i] = DLAM[i, kl, r] / scale
+        _subtract_product(Dq, indices, indptr, n_dof, DQ[:, kq, :].T, rhs)
+        _subtract_product(Dv, indices, indptr, n_dof, DV[:, kv, :].T, rhs)
         _subtract_product(D0, indices, indptr, n_dof + n_con, x0, rhs)
 
 
@@ -216,37 +216,36 @@ def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
     """Store the step's solution ``x = (da, dlam/scale)`` (n, n_x) as entry ``n`` of the
     histories and advance ``dq, dv, dg`` by the Newmark update from entry ``n - 1``
     (``n == 0``: the initial solve, which sets ``da, dg, dlam`` only). A history the caller
-    does not keep may hold just two levels: entry ``n`` of ``X`` is ``X[n % len(X)]`` (``DG``,
-    the algorithmic acceleration, is only needed by the next step)."""
+    does not keep may hold just two levels: entry ``n`` of ``X`` is ``X[:, n % X.shape[1]]``
+    (``DG``, the algorithmic acceleration, is only needed by the next step). Layout
+    ``(n_x, levels, width)``: one variable's history is contiguous."""
     n_x = x.shape[1]
-    nq, nv, na, n_g, nl = DQ.shape[0], DV.shape[0], DA.shape[0], DG.shape[0], DLAM.shape[0]
-    n_con = DLAM.shape[1]
+    nq, nv, na, n_g, nl = DQ.shape[1], DV.shape[1], DA.shape[1], DG.shape[1], DLAM.shape[1]
+    n_con = DLAM.shape[2]
     if n == 0:
-        for r in range(n_dof):
-            for i in range(n_x):
-                DA[0, r, i] = x[r, i]
-                DG[0, r, i] = x[r, i]
-        for r in range(n_con):
-            for i in range(n_x):
-                DLAM[0, r, i] = x[n_dof + r, i] * scale
+        for i in range(n_x):
+            for r in range(n_dof):
+                DA[i, 0, r] = x[r, i]
+                DG[i, 0, r] = x[r, i]
+            for r in range(n_con):
+                DLAM[i, 0, r] = x[n_dof + r, i] * scale
         return
     h, cqa, cqg, cva, cvg, bh2, gh = pc[0], pc[1], pc[2], pc[3], pc[4], pc[5], pc[6]
     ga, gan, ggn = upd[0], upd[1], upd[2]
     m = n - 1
     qn, qm, vn, vm, an, am = n % nq, m % nq, n % nv, m % nv, n % na, m % na
     gn, gm, ln = n % n_g, m % n_g, n % nl
-    for r in range(n_dof):
-        for i in range(n_x):
+    for i in range(n_x):
+        for r in range(n_dof):
             da = x[r, i]
-            a0 = DA[am, r, i]
-            g0 = DG[gm, r, i]
-            DQ[qn, r, i] = DQ[qm, r, i] + h * DV[vm, r, i] + cqa * a0 + cqg * g0 + bh2 * da
-            DV[vn, r, i] = DV[vm, r, i] + cva * a0 + cvg * g0 + gh * da
-            DG[gn, r, i] = ga * da + gan * a0 + ggn * g0
-            DA[an, r, i] = da
-    for r in range(n_con):
-        for i in range(n_x):
-            DLAM[ln, r, i] = x[n_dof + r, i] * scale
+            a0 = DA[i, am, r]
+            g0 = DG[i, gm, r]
+            DQ[i, qn, r] = DQ[i, qm, r] + h * DV[i, vm, r] + cqa * a0 + cqg * g0 + bh2 * da
+            DV[i, vn, r] = DV[i, vm, r] + cva * a0 + cvg * g0 + gh * da
+            DG[i, gn, r] = ga * da + gan * a0 + ggn * g0
+            DA[i, an, r] = da
+        for r in range(n_con):
+            DLAM[i, ln, r] = x[n_dof + r, i] * scale
 
 
 @njit(cache=True)

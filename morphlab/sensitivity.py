@@ -148,7 +148,7 @@ def _lazy_history(name: str) -> property:
                 raise SensitivityError(
                     f"the sensitivity history of {name!r} was not kept (kept: {sorted(d)}); "
                     f"run sensitivities(..., store='all') or store=(..., {name!r})")
-            arr = getattr(base, name) + 1j * CS_STEP * d[name][:, :, col]
+            arr = getattr(base, name) + 1j * CS_STEP * d[name][col]
             self._histories[name] = arr
         return arr
 
@@ -182,7 +182,8 @@ class _PerturbedResult(Result):
 
 
 def _perturbed_result(base: Result, system: System, d: dict, col: int) -> Result:
-    """A complex Result: histories ``x + i h dx/dp_col`` on the complex system ``system``."""
+    """A complex Result: histories ``x + i h dx/dp_col`` on the complex system ``system``
+    (``d[name]`` of layout (n_x, n_t, width))."""
     return _PerturbedResult(base, system, d, col)
 
 
@@ -524,14 +525,15 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
                                                            "pert"))
     # histories kept in full: those in ``kept``; the others (and the algorithmic
     # acceleration) hold the last two levels, all the time stepping reads
+    # layout (n_x, levels, width): one variable's history is contiguous
     def history(name, width):
-        return np.zeros(((n_steps + 1) if name in kept else 2, width, n_x))
+        return np.zeros((n_x, (n_steps + 1) if name in kept else 2, width))
 
     full = {"q": history("q", n_dof), "v": history("v", n_dof), "a": history("a", n_dof),
             "lam": history("lam", n_con)}
-    full["q"][0], full["v"][0] = data["dq0"], data["dv0"]
-    dg = np.zeros((2, n_dof, n_x))
-    D = {k: full[k] for k in HISTORIES if k in kept}
+    full["q"][:, 0], full["v"][:, 0] = data["dq0"].T, data["dv0"].T
+    dg = np.zeros((n_x, 2, n_dof))
+    by_variable = {k: full[k] for k in HISTORIES if k in kept}
     hist = (full["q"], full["v"], full["a"], dg, full["lam"])
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
     work = np.zeros((2, n), dtype=data["dtype"])
@@ -590,10 +592,11 @@ def _direct(sys0, settings, names, perturbed_cs, build, p0, steps, method, refin
     res0 = integrate(sys0, settings, observer=observer, progress=progress)
     total = _time.perf_counter() - t0
     stats["n_factorizations"] = res0.n_factorizations
-    perturbed = [_perturbed_result(res0, s, D, i) for i, s in enumerate(perturbed_cs)]
+    perturbed = [_perturbed_result(res0, s, by_variable, i) for i, s in enumerate(perturbed_cs)]
     timing = {"primal": total - stats["sensitivity_time"],
               "sensitivity": stats["sensitivity_time"], "run": total}
-    return res0, perturbed, D, timing, stats
+    state = {k: np.moveaxis(v, 0, -1) for k, v in by_variable.items()}  # (n_t, width, n_x)
+    return res0, perturbed, state, timing, stats
 
 
 def _complex_step(sys0, settings, names, perturbed_cs, progress):

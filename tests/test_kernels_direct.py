@@ -22,11 +22,13 @@ def test_update_is_the_primal_newmark_update(scheme):
     n_t, n_dof, n_con, n_x = 4, 7, 3, 5
     hist = [rng.normal(size=(n_t, n_dof, n_x)) for _ in range(4)]
     hist.append(rng.normal(size=(n_t, n_con, n_x)))
-    DQ, DV, DA, DG, DLAM = (h.copy() for h in hist)
+    # kernel layout (n_x, n_t, width); compared below in the (n_t, width, n_x) of hist
+    DQ, DV, DA, DG, DLAM = (np.ascontiguousarray(np.moveaxis(h, -1, 0)) for h in hist)
     x = rng.normal(size=(n_dof + n_con, n_x))
     scale = 3.5
     pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
     update_sensitivities(DQ, DV, DA, DG, DLAM, 2, x, scale, n_dof, pc, np.array(coef.upd))
+    DQ, DV, DA, DG, DLAM = (np.moveaxis(h, 0, -1) for h in (DQ, DV, DA, DG, DLAM))
     q, v, a, g, _ = (h[1] for h in hist)
     qh, vh = newmark_predict(coef, q, v, a, g)
     q1, v1, g1 = newmark_update(coef, qh, vh, x[:n_dof], a, g)
@@ -41,16 +43,16 @@ def test_update_is_the_primal_newmark_update(scheme):
 def test_initial_entry_sets_accelerations_and_multipliers_only():
     rng = np.random.default_rng(4)
     n_dof, n_con, n_x = 5, 2, 3
-    DQ, DV, DA, DG = (np.zeros((2, n_dof, n_x)) for _ in range(4))
-    DLAM = np.zeros((2, n_con, n_x))
-    DQ[0] = rng.normal(size=(n_dof, n_x))
-    q0 = DQ[0].copy()
+    DQ, DV, DA, DG = (np.zeros((n_x, 2, n_dof)) for _ in range(4))
+    DLAM = np.zeros((n_x, 2, n_con))
+    DQ[:, 0] = rng.normal(size=(n_x, n_dof))
+    q0 = DQ[:, 0].copy()
     x = rng.normal(size=(n_dof + n_con, n_x))
     update_sensitivities(DQ, DV, DA, DG, DLAM, 0, x, 2.0, n_dof, np.zeros(7), np.zeros(3))
-    np.testing.assert_array_equal(DA[0], x[:n_dof])
-    np.testing.assert_array_equal(DG[0], x[:n_dof])
-    np.testing.assert_array_equal(DLAM[0], 2.0 * x[n_dof:])
-    np.testing.assert_array_equal(DQ[0], q0)
+    np.testing.assert_array_equal(DA[:, 0], x[:n_dof].T)
+    np.testing.assert_array_equal(DG[:, 0], x[:n_dof].T)
+    np.testing.assert_array_equal(DLAM[:, 0], 2.0 * x[n_dof:].T)
+    np.testing.assert_array_equal(DQ[:, 0], q0)
     assert not DV.any()
 
 
@@ -72,15 +74,16 @@ def test_two_level_buffer_of_the_algorithmic_acceleration():
     rng = np.random.default_rng(8)
     coef = step_coefficients("arnold-bruls", GeneralizedAlpha(0.8), 1e-3)
     n_t, n_dof, n_con, n_x = 5, 6, 2, 3
-    full = [rng.normal(size=(n_t, n_dof, n_x)) for _ in range(4)]
-    full.append(rng.normal(size=(n_t, n_con, n_x)))
+    full = [rng.normal(size=(n_x, n_t, n_dof)) for _ in range(4)]
+    full.append(rng.normal(size=(n_x, n_t, n_con)))
     ring = [h.copy() for h in full]
-    ring[3] = np.stack([full[3][4], full[3][3]])  # levels 4, 3 stored at 4 % 2, 3 % 2
+    ring[3] = np.ascontiguousarray(np.stack([full[3][:, 4], full[3][:, 3]], axis=1))
+    # levels 4, 3 stored at 4 % 2, 3 % 2
     x = rng.normal(size=(n_dof + n_con, n_x))
     pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
     upd = np.array(coef.upd)
     update_sensitivities(*full, 4, x, 1.5, n_dof, pc, upd)
     update_sensitivities(*ring, 4, x, 1.5, n_dof, pc, upd)
-    np.testing.assert_array_equal(ring[3][0], full[3][4])  # new level written at 4 % 2
-    np.testing.assert_array_equal(ring[0][4], full[0][4])
-    np.testing.assert_array_equal(ring[1][4], full[1][4])
+    np.testing.assert_array_equal(ring[3][:, 0], full[3][:, 4])  # new level written at 4 % 2
+    np.testing.assert_array_equal(ring[0][:, 4], full[0][:, 4])
+    np.testing.assert_array_equal(ring[1][:, 4], full[1][:, 4])
