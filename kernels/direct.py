@@ -11,12 +11,12 @@ along ``(ds_n/dp_i, e_i)``. It is split into
   applied to all n_x columns at once (:func:`state_loads`);
 * the explicit part ``dR/dp_i`` at the converged (real) state, by complex step or forward
   difference of the primal's own residual kernel, evaluated only over the bodies, elements,
-  constraint rows, loads and torques whose data variable ``i`` changes
+  flexible coordinates, constraint rows, loads and torques whose data variable ``i`` changes
   (:func:`explicit_loads`). The state is real, so the parts left out carry no imaginary part
   (and cancel in a difference): the derivative is exact, and a thickness variable of a few
   elements costs a few elements, not a whole residual.
 
-Then (in Python) one SuperLU solve with the primal's last factorization, iterative refinement
+Then (in Python) one solve with the primal's last factorization, iterative refinement
 against the exact converged matrix (:func:`csc_residual`, the matrix comes from
 :func:`state_loads`), and :func:`update_sensitivities`, the Newmark update of the histories.
 
@@ -87,8 +87,8 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F`` (n_t, n_load, 2):
     the point forces at every time; ``k_new`` and ``k``: the time indices of ``t_{n+1}`` and
     ``t_n``; ``DQ ... DLAM``: the sensitivity histories, (n_x, levels, width), level ``k`` is
-    the old one;
-    ``mats`` (6, nnz): scratch for the split matrices of both levels. All float64.
+    the old one; ``mats`` (6, nnz): scratch for the split matrices of both levels. All
+    float64.
     """
     n_x = rhs.shape[1]
     D0, Dq, Dv = mats[0], mats[1], mats[2]
