@@ -84,8 +84,9 @@ class SensitivityResult:
     variables : list[str]
         Design variable names, in column order of the arrays below.
     state : dict[str, ndarray]
-        Direct methods: ``"q"``, ``"v"``, ``"a"`` (n_t, n_dof, n_x) and ``"lam"``
-        (n_t, n_con, n_x), the sensitivity histories. Empty for the other methods.
+        Direct methods: the sensitivity histories kept (``store`` of :func:`sensitivities`;
+        by default those the responses read), of ``"q"``, ``"v"``, ``"a"`` (n_t, n_dof, n_x)
+        and ``"lam"`` (n_t, n_con, n_x). Empty for the other methods.
     timing : dict[str, float]
         Wall seconds: ``"primal"``, ``"sensitivity"`` (the extra work) and ``"total"``.
     stats : dict
