@@ -52,19 +52,24 @@ def _timeit(fn, repeats: int) -> dict:
     return _stats(times)
 
 
-def _rounds(fns: dict, repeats: int) -> dict:
-    """Median, min and max of each function: one warm-up call each, then ``repeats`` rounds
-    calling every function once per round, so that a change of the machine's load hits all of
-    them alike (the ratios are formed within one round set)."""
-    for fn in fns.values():
-        fn()
+def interleaved_times(fns: dict, repeats: int) -> dict:
+    """Wall times [s] of each function over ``repeats`` rounds that call every function once,
+    in turn, so that a change of the machine's load hits all of them alike."""
     times: dict = {k: [] for k in fns}
     for _ in range(repeats):
         for k, fn in fns.items():
             t0 = time.perf_counter()
             fn()
             times[k].append(time.perf_counter() - t0)
-    return {k: _stats(v) for k, v in times.items()}
+    return times
+
+
+def _rounds(fns: dict, repeats: int) -> dict:
+    """Median, min and max of each function: a warm-up call each, then interleaved rounds
+    (:func:`interleaved_times`; the ratios are formed within one round set)."""
+    for fn in fns.values():
+        fn()
+    return {k: _stats(v) for k, v in interleaved_times(fns, repeats).items()}
 
 
 def _morphing():

@@ -45,18 +45,6 @@ def _median_time(fn, repeats: int) -> tuple[float, list[float]]:
     return statistics.median(times), times
 
 
-def _rounds(fns: dict, repeats: int) -> dict:
-    """Median and run times of each function, timed in interleaved rounds (so that a change of
-    the machine's load hits all of them alike)."""
-    times: dict = {k: [] for k in fns}
-    for _ in range(repeats):
-        for k, fn in fns.items():
-            t0 = _time.perf_counter()
-            fn()
-            times[k].append(_time.perf_counter() - t0)
-    return {k: (statistics.median(v), v) for k, v in times.items()}
-
-
 def _fmt(x: float) -> str:
     return f"{x:.4g}" if abs(x) >= 1e-3 or x == 0 else f"{x:.3e}"
 
@@ -102,6 +90,7 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
 
     timing_s: dict = {}
     if timing:
+        from .bench import interleaved_times
         from .compile import compile_model
         from .timeloop import simulate
 
@@ -118,8 +107,8 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
             "direct_fd": lambda: sensitivities(build, p0, responses, method="direct-fd",
                                                step=fd_step, **settings),
         }
-        for k, (med, times) in _rounds(runs, repeats).items():
-            timing_s[k], timing_s[f"{k}_runs"] = med, times
+        for k, times in interleaved_times(runs, repeats).items():
+            timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
         timing_s["finite_difference"], timing_s["finite_difference_runs"] = _median_time(
             lambda: sensitivities(build, p0, responses, method="forward-difference",
                                   step=fd_step, **settings), max(1, repeats // 2))
