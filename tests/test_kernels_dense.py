@@ -6,7 +6,7 @@ import pytest
 from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve
 
 import morphlab as ml
-import morphlab.solver as solver
+import morphlab.factorization as factorization
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])
@@ -65,9 +65,9 @@ def test_dense_and_superlu_paths_give_the_same_run(monkeypatch):
     """Both are backward-stable direct solvers of the same Newton systems: the runs agree to
     the Newton tolerance (1e-10 of the model size); measured 7e-15 mm on 40 steps."""
     system = ml.compile_model(_four_bar())
-    assert system.n <= solver.DENSE_MAX
+    assert system.n <= factorization.DENSE_MAX
     dense = ml.simulate(system, t_end=0.04, dt=1e-3)
-    monkeypatch.setattr(solver, "DENSE_MAX", 0)
+    monkeypatch.setattr(factorization, "DENSE_MAX", 0)
     sparse = ml.simulate(system, t_end=0.04, dt=1e-3)
     np.testing.assert_array_equal(dense.newton_iterations, sparse.newton_iterations)
     assert np.abs(dense.q - sparse.q).max() < 1e-10 * system.length_scale

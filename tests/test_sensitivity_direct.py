@@ -27,6 +27,7 @@ import pytest
 import scipy.sparse.linalg
 
 import morphlab as ml
+import morphlab.factorization
 import morphlab.sensitivity
 import morphlab.solver
 
@@ -219,8 +220,8 @@ def test_stress_and_node_position_derivatives_match_complex_step(runs):
 def _count_factorizations(monkeypatch):
     """Count every call of a sparse factorization or sparse direct solve, wherever bound
     (scipy itself and the names imported into the morphlab modules, including the SuperLU
-    entry point the solver calls directly, ``morphlab.solver._gstrf``, and the dense LU of small
-    step matrices, ``morphlab.solver.lu_factor``)."""
+    entry point the solver calls directly, ``morphlab.factorization._gstrf``, and the dense LU of
+    small step matrices, ``morphlab.factorization.lu_factor``)."""
     calls = {"n": 0}
 
     def wrap(fn):
@@ -229,7 +230,8 @@ def _count_factorizations(monkeypatch):
             return fn(*args, **kwargs)
         return counted
 
-    for mod in (scipy.sparse.linalg, morphlab.solver, morphlab.sensitivity):
+    for mod in (scipy.sparse.linalg, morphlab.factorization, morphlab.solver,
+                morphlab.sensitivity):
         for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf", "lu_factor"):
             if getattr(mod, name, None) is not None:
                 monkeypatch.setattr(mod, name, wrap(getattr(mod, name)))
