@@ -1,7 +1,7 @@
 """Dense LU with partial pivoting for small Newton matrices.
 
 SuperLU spends ~20 us per factorization in set-up for matrices of a few dozen unknowns,
-where the whole elimination is a few thousand flops; below ``morphlab.solver.DENSE_MAX``
+where the whole elimination is a few thousand flops; below ``morphlab.factorization.DENSE_MAX``
 unknowns the step matrix is scattered into a dense array and factored here. Row-pivoted
 Gaussian elimination (``P A = L U``, the pivot the entry of largest magnitude in its column:
 Golub & Van Loan, Matrix Computations, 4th ed., alg. 3.4.1), float64 or complex128.
