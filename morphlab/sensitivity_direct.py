@@ -1,0 +1,335 @@
+"""Direct differentiation of a run (``method="direct"`` and ``"direct-fd"`` of
+:func:`morphlab.sensitivities`; the method is described in :mod:`morphlab.sensitivity`).
+
+Built once per run here: the perturbed designs' arrays stacked over the variables, the parts of
+the model each variable changes, the time tables, the initial sensitivities and the histories
+to keep (``store``); then one primal run whose step observer does the sensitivity step in a
+few compiled calls (:mod:`morphlab.kernels.direct`) and solves with the primal's factorization.
+Afterwards each variable's complex history ``x + i h dx/dp`` is formed on demand for the
+responses (:class:`_PerturbedResult`).
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Mapping
+
+import numpy as np
+
+from .compile import System, compile_model
+from .errors import SensitivityError
+from .kernels.direct import (
+    PERTURBED,
+    csc_residual,
+    explicit_loads,
+    state_loads,
+    update_sensitivities,
+)
+from .results import Result
+from .solver import Settings, kernel_arrays, time_table
+from .timeloop import StepInfo, integrate
+
+CS_STEP = 1e-30
+HISTORIES = ("q", "v", "a", "lam")
+# Refine the direct solve against the exact converged matrix only when the last Newton
+# correction (relative to the model size) exceeds this: below it, the lagged LU's relative
+# error O(|dz|) is already under the 1e-8 accuracy the sensitivities are verified to.
+REFINE_TOL = 1e-12
+
+
+def _lazy_history(name: str) -> property:
+    """A history of :class:`_PerturbedResult`, formed on first access."""
+
+    def get(self):
+        arr = self._histories.get(name)
+        if arr is None:
+            base, d, col = self._source
+            if name not in d:
+                raise SensitivityError(
+                    f"the sensitivity history of {name!r} was not kept (kept: {sorted(d)}); "
+                    f"run sensitivities(..., store='all') or store=(..., {name!r})")
+            arr = getattr(base, name) + 1j * CS_STEP * d[name][col]
+            self._histories[name] = arr
+        return arr
+
+    def set(self, value):
+        if value is not None:
+            self._histories[name] = value
+
+    return property(get, set)
+
+
+class _PerturbedResult(Result):
+    """A complex Result of one design variable: histories ``x + i h dx/dp_col`` on the complex
+    system. Each history is formed when a response first reads it (a response of the
+    positions needs neither velocities, accelerations nor multipliers: with many variables
+    the other complex copies cost more than the response)."""
+
+    q = _lazy_history("q")
+    v = _lazy_history("v")
+    a = _lazy_history("a")
+    lam = _lazy_history("lam")
+
+    def __init__(self, base: Result, system: System, d: dict, col: int):
+        self._histories: dict = {}
+        self._source = (base, d, col)
+        super().__init__(
+            system=system, settings=base.settings, t=base.t, q=None, v=None, a=None, lam=None,
+            newton_iterations=base.newton_iterations,
+            constraint_violation=base.constraint_violation,
+            velocity_violation=base.velocity_violation, status=base.status,
+            message=base.message, scale=base.scale)
+
+
+def _perturbed_result(base: Result, system: System, d: dict, col: int) -> Result:
+    """A complex Result: histories ``x + i h dx/dp_col`` on the complex system ``system``
+    (``d[name]`` of layout (n_x, n_t, width))."""
+    return _PerturbedResult(base, system, d, col)
+
+
+def check_same_layout(a: System, b: System, name: str) -> None:
+    same = (a.n_dof == b.n_dof and a.n_con == b.n_con and a.nnz == b.nnz
+            and np.array_equal(a.indices, b.indices) and np.array_equal(a.indptr, b.indptr))
+    if not same:
+        raise SensitivityError(
+            f"changing design variable {name!r} changes the model's structure (DOFs, "
+            "constraints or sparsity pattern); build(p) must keep the topology fixed")
+
+
+# Column blocks for the multi-right-hand-side solve (None: all columns in one call). An
+# earlier session measured SuperLU's solve ~15x slower with more than about a dozen columns
+# (OpenBLAS threading on this 2-core machine, 3 ms instead of 0.2 ms at n_x = 15) and solved in
+# blocks of 8; re-measured 2026-11-21 (SciPy 1.17, OpenBLAS 0.3.31), also with the second
+# core busy, one call is faster at every width: 12 columns 30 vs 45 us, 50 columns at 60
+# elements 153 vs 259 us. Set an int here if the slowdown shows up again.
+SOLVE_BLOCK: int | None = None
+
+
+def _solve(lu, b):
+    """``lu.solve`` for many right-hand sides (in column blocks of SOLVE_BLOCK if set)."""
+    if SOLVE_BLOCK is None or b.ndim == 1 or b.shape[1] <= SOLVE_BLOCK:
+        return lu.solve(b)
+    return np.concatenate([lu.solve(np.ascontiguousarray(b[:, k:k + SOLVE_BLOCK]))
+                           for k in range(0, b.shape[1], SOLVE_BLOCK)], axis=1)
+
+
+def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
+    """Per entry along axis ``axis_keep``: does any value of ``a`` differ from ``b``?"""
+    d = np.asarray(a) != np.asarray(b)
+    if d.ndim == 0:
+        return d
+    d = np.moveaxis(d, axis_keep, 0)
+    return d.reshape(d.shape[0], -1).any(axis=1) if d.size else np.zeros(d.shape[0], bool)
+
+
+def _variable_parts(sys0: System, S0: tuple, Si: tuple, tab0: tuple, tabi: tuple) -> tuple:
+    """The bodies, elements, flexible coordinates, constraint rows, loads and torques whose
+    data differ between the nominal arrays ``S0`` / time table ``tab0`` and a perturbed
+    design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must evaluate
+    (:mod:`morphlab.kernels.direct`). A changed element brings its body and its coordinates."""
+    n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
+    damp = _changed(Si[3], S0[3])
+    elem = (_changed(Si[11], S0[11]) | _changed(Si[12], S0[12]) | _changed(Si[13], S0[13])
+            | damp[sys0.elem_body]) if n_elem else np.zeros(0, bool)
+    flex = _changed(Si[6], S0[6]) | _changed(Si[7], S0[7]) | _changed(Si[8], S0[8])
+    fdof = sys0.elem_fdof[elem]
+    flex[fdof[fdof >= 0]] = True
+    body = _changed(Si[2], S0[2]) | damp
+    if np.any(Si[0] != S0[0]):  # gravity acts on every body and every coordinate
+        body[:] = True
+        flex[:] = True
+    for b in range(n_body):
+        lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
+        body[b] |= bool(flex[lo:hi].any())
+        if damp[b]:
+            flex[lo:hi] = True
+    body[sys0.elem_body[elem]] = True
+    # time tables (n_t, ...): a row changes if it changes at any time
+    rows = (_changed(Si[16], S0[16]) | _changed(tabi[0], tab0[0], 1)
+            | _changed(tabi[1], tab0[1], 1) | _changed(tabi[2], tab0[2], 1))
+    loads = _changed(Si[18], S0[18]) | _changed(tabi[3], tab0[3], 1)
+    torques = _changed(tabi[4], tab0[4], 1)
+    return tuple(np.flatnonzero(m).astype(np.int64)
+                 for m in (body, elem, flex, rows, loads, torques))
+
+
+def _pack_parts(parts: list) -> tuple:
+    """Per-variable index lists as ``(offsets, indices)`` pairs (CSR over the variables)."""
+    out = []
+    for kind in range(6):
+        lists = [p[kind] for p in parts]
+        off = np.zeros(len(lists) + 1, dtype=np.int64)
+        off[1:] = np.cumsum([len(x) for x in lists])
+        idx = np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64)
+        out += [off, idx]
+    return tuple(out)
+
+
+class _ProbeResult(Result):
+    """A two-step Result of the nominal model (initial state, zero rates) that records which
+    histories are read: what a direct run must keep for the responses."""
+
+    def __init__(self, system: System, settings: Settings):
+        self.read: set = set()
+        n_dof, n_con = system.n_dof, system.n_con
+        q = np.repeat(np.real(system.q0)[None, :], 2, axis=0)
+        zeros = np.zeros((2, n_dof))
+        self._h = {"q": q, "v": zeros, "a": zeros, "lam": np.zeros((2, n_con))}
+        super().__init__(system=system, settings=settings,
+                         t=settings.t_start + settings.h * np.arange(2.0), q=None, v=None,
+                         a=None, lam=None, newton_iterations=np.ones(2, dtype=np.int64),
+                         constraint_violation=np.zeros(2), velocity_violation=np.zeros(2))
+
+    def _get(self, name):
+        self.read.add(name)
+        return self._h[name]
+
+    q = property(lambda self: self._get("q"), lambda self, value: None)
+    v = property(lambda self: self._get("v"), lambda self, value: None)
+    a = property(lambda self: self._get("a"), lambda self, value: None)
+    lam = property(lambda self: self._get("lam"), lambda self, value: None)
+
+
+def histories_to_store(store, responses: Mapping, system: System, settings: Settings) -> tuple:
+    """The sensitivity histories a direct run keeps in full (see ``store`` of
+    :func:`sensitivities`)."""
+    if store == "all":
+        return HISTORIES
+    if store != "auto":
+        return tuple(h for h in HISTORIES if h in store)
+    probe = _ProbeResult(system, settings)
+    try:
+        with np.errstate(all="ignore"):
+            for fn in responses.values():
+                fn(probe)
+    except Exception:  # a response that cannot run on the probe: keep everything
+        return HISTORIES
+    return tuple(h for h in HISTORIES if h in probe.read)
+
+
+def _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method):
+    """What the pseudo-load kernels read, built once per run: the perturbed designs' arrays
+    stacked over the variables (``P``), the parts each changes (``parts``), the time tables
+    (``TAB`` per design, ``tab0`` nominal), the nominal arrays in the perturbation's dtype
+    (``S_nom``), the perturbations (``pert``) and the initial sensitivities ``dq_0, dv_0``."""
+    n_x = len(names)
+    times = settings.t_start + settings.h * np.arange(settings.n_steps + 1)
+    if method == "direct":
+        psys = perturbed_cs
+        pert = np.full(n_x, 1j * CS_STEP)
+    else:
+        psys = []
+        for v in names:
+            pv = dict(p0)
+            pv[v] = p0[v] + steps[v]
+            sp_ = compile_model(build(pv), dtype=np.float64, like=sys0)
+            check_same_layout(sys0, sp_, v)
+            psys.append(sp_)
+        pert = np.array([steps[v] for v in names])
+    dt_ = np.complex128 if method == "direct" else np.float64
+    S_nom = kernel_arrays(sys0, dt_)  # integer tables shared with the primal's
+    S_all = [kernel_arrays(s, dt_) for s in psys]
+    P = tuple(np.ascontiguousarray(np.stack([Sk[k] for Sk in S_all])) for k in PERTURBED)
+    shared: dict = {}
+    tab0 = time_table(sys0, times, dt_, cache=shared)
+    tables = [time_table(s, times, dt_, cache=shared) for s in psys]
+    parts = _pack_parts([_variable_parts(sys0, S_nom, Sk, tab0, tb)
+                         for Sk, tb in zip(S_all, tables)])
+    TAB = tuple(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
+                for k in range(5))  # (n_t, n_x, ...)
+    if method == "direct":
+        dq0 = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
+        dv0 = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
+    else:
+        dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
+        dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
+    return dict(S_nom=S_nom, P=P, parts=parts, TAB=TAB, tab0=tab0, pert=pert, dtype=dt_,
+                dq0=dq0, dv0=dv0)
+
+
+def direct_run(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine, progress,
+            kept=HISTORIES):
+    """Primal run with the direct-differentiation observer (per step: one compiled call for
+    the state part of the pseudo-loads and the exact converged matrix, one for the explicit
+    parts, one multi-right-hand-side solve, an optional refinement sweep and one compiled call
+    for the Newmark update; :mod:`morphlab.kernels.direct`)."""
+    n_x = len(names)
+    n_steps = settings.n_steps
+    n_dof, n_con, n = sys0.n_dof, sys0.n_con, sys0.n
+    data = _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, method)
+    S_nom, P, parts, TAB, tab0, pert = (data[k] for k in ("S_nom", "P", "parts", "TAB", "tab0",
+                                                           "pert"))
+    # histories kept in full: those in ``kept``; the others (and the algorithmic
+    # acceleration) hold the last two levels, all the time stepping reads
+    # layout (n_x, levels, width): one variable's history is contiguous
+    def history(name, width):
+        return np.zeros((n_x, (n_steps + 1) if name in kept else 2, width))
+
+    full = {"q": history("q", n_dof), "v": history("v", n_dof), "a": history("a", n_dof),
+            "lam": history("lam", n_con)}
+    full["q"][:, 0], full["v"][:, 0] = data["dq0"].T, data["dv0"].T
+    dg = np.zeros((n_x, 2, n_dof))
+    by_variable = {k: full[k] for k in HISTORIES if k in kept}
+    hist = (full["q"], full["v"], full["a"], dg, full["lam"])
+    stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
+    work = np.zeros((2, n), dtype=data["dtype"])
+    mats = np.zeros((6, sys0.nnz))
+    J = np.zeros(sys0.nnz)
+    rhs = np.zeros((n, n_x))
+    r = np.zeros((n, n_x))
+    zero_dof = np.zeros(n_dof)
+    zero_con = np.zeros(n_con)
+    coef_arrays: dict = {}  # per StepCoefficients object: (pc, upd, w_old, w_new) as arrays
+
+    def arrays_of(coef):
+        key = id(coef)
+        if key not in coef_arrays:
+            coef_arrays[key] = (
+                np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh)),
+                np.array(coef.upd, dtype=np.float64),
+                np.asarray(coef.old if coef.old is not None else np.zeros(5), dtype=np.float64),
+                np.asarray(coef.new, dtype=np.float64), coef)  # keep coef alive: id stays valid
+        return coef_arrays[key][:4]
+
+    def observer(info: StepInfo):
+        t0 = _time.perf_counter()
+        stp = info.stepper
+        k = info.n
+        coef = info.coef
+        pc, upd, w_old, w_new = arrays_of(coef)
+        has_old = coef.old is not None
+        new = info.state
+        if info.prev is None:  # initial solve: the state at t_0, no old level
+            old, k_old = (new.q, new.v, zero_dof, zero_con), 0
+        else:
+            old, k_old = (info.prev.q, info.prev.v, info.prev.a, info.prev.lam), k - 1
+        state_loads(stp.S, new.q, new.v, new.a, new.lam, w_new, has_old, *old, w_old,
+                    info.table[3], k, stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh,
+                    sys0.indices, sys0.indptr, n_dof, *hist, k_old, pc, mats, J, rhs)
+        explicit_loads(S_nom, P, parts, new.q, new.v, new.a, new.lam, w_new, has_old, *old,
+                       w_old, stp.scale, stp.b0, stp.b1, TAB, tab0, k_old, k, n_dof, pert, work,
+                       rhs)
+        x = _solve(info.lu, rhs)
+        # The LU is one Newton iterate behind (taken at z_k, z* = z_k + dz): its relative error
+        # is O(|dz|). When the last position correction exceeds REFINE_TOL of the model
+        # size, refine against the exact matrix J at z* (from state_loads; not factored).
+        last = info.newton_history[-1][1] if info.newton_history else 0.0
+        if refine and info.prev is not None and last > REFINE_TOL:
+            for _ in range(refine):
+                csc_residual(J, sys0.indices, sys0.indptr, x, rhs, r)
+                x = x + _solve(info.lu, r)
+            rr, bb = csc_residual(J, sys0.indices, sys0.indptr, x, rhs, r)
+            stats["refined_steps"] += 1
+            stats["refinement_residual"].append(rr / max(bb, 1e-300))
+        update_sensitivities(*hist, k, x, stp.scale, n_dof, pc, upd)
+        stats["sensitivity_time"] += _time.perf_counter() - t0
+
+    t0 = _time.perf_counter()
+    res0 = integrate(sys0, settings, observer=observer, progress=progress)
+    total = _time.perf_counter() - t0
+    stats["n_factorizations"] = res0.n_factorizations
+    perturbed = [_perturbed_result(res0, s, by_variable, i) for i, s in enumerate(perturbed_cs)]
+    timing = {"primal": total - stats["sensitivity_time"],
+              "sensitivity": stats["sensitivity_time"], "run": total}
+    state = {k: np.moveaxis(v, 0, -1) for k, v in by_variable.items()}  # (n_t, width, n_x)
+    return res0, perturbed, state, timing, stats
