@@ -9,6 +9,7 @@ the same step code on these numbers; the update is linear, so :func:`newmark_pre
 
 from __future__ import annotations
 
+import functools
 import numbers
 from dataclasses import dataclass
 
@@ -83,6 +84,16 @@ class StepCoefficients:
     gh: float
     pred: tuple = (0.0, 0.0, 0.0, 0.0)  # (cqa, cqg, cva, cvg)
     upd: tuple = (1.0, 0.0, 0.0)  # (ga, gan, ggn)
+
+    @functools.cached_property
+    def arrays(self) -> tuple:
+        """The coefficients as the float64 arrays the kernels take: ``(pc, upd, w_old,
+        w_new)`` with ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)`` and zero old weights when
+        there is no old level (formed once per coefficient object)."""
+        return (np.array((self.h,) + tuple(self.pred) + (self.bh2, self.gh), dtype=np.float64),
+                np.array(self.upd, dtype=np.float64),
+                np.array(self.old if self.old is not None else (0.0,) * 5, dtype=np.float64),
+                np.array(self.new, dtype=np.float64))
 
 
 def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,

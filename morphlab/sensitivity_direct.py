@@ -279,24 +279,12 @@ def direct_run(sys0, settings, names, perturbed_cs, build, p0, steps, method, re
     r = np.zeros((n, n_x))
     zero_dof = np.zeros(n_dof)
     zero_con = np.zeros(n_con)
-    coef_arrays: dict = {}  # per StepCoefficients object: (pc, upd, w_old, w_new) as arrays
-
-    def arrays_of(coef):
-        key = id(coef)
-        if key not in coef_arrays:
-            coef_arrays[key] = (
-                np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh)),
-                np.array(coef.upd, dtype=np.float64),
-                np.asarray(coef.old if coef.old is not None else np.zeros(5), dtype=np.float64),
-                np.asarray(coef.new, dtype=np.float64), coef)  # keep coef alive: id stays valid
-        return coef_arrays[key][:4]
-
     def observer(info: StepInfo):
         t0 = _time.perf_counter()
         stp = info.stepper
         k = info.n
         coef = info.coef
-        pc, upd, w_old, w_new = arrays_of(coef)
+        pc, upd, w_old, w_new = coef.arrays
         has_old = coef.old is not None
         new = info.state
         if info.prev is None:  # initial solve: the state at t_0, no old level

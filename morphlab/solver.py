@@ -148,7 +148,6 @@ class Stepper:
                                            settings.constraint_form)
         self.init_coef = INITIAL
         self.data = np.zeros(system.nnz, dtype=self.dtype)
-        self._w: dict = {}  # id(coef) -> (coef, weights array)
         self._A = None
         self.scale = scale if scale is not None else self._choose_scale()
         self.n_factorizations = 0
@@ -191,14 +190,6 @@ class Stepper:
         return tuple(np.ascontiguousarray(x, dtype=self.dtype)
                      for x in self.system.time_arrays(t))
 
-    def _weights(self, coef: StepCoefficients) -> np.ndarray:
-        """``coef.new`` as an array (cached per coefficient object)."""
-        hit = self._w.get(id(coef))
-        if hit is None or hit[0] is not coef:
-            hit = (coef, np.array(coef.new, dtype=np.float64))
-            self._w[id(coef)] = hit
-        return hit[1]
-
     def residual(self, z, qh, vh, t1, coef: StepCoefficients, R_hist, time_arrays=None):
         """Residual of the step at ``z = (a, lam/scale)`` (n,)."""
         return self._residual(z, qh, vh, t1, coef, R_hist, time_arrays)[0]
@@ -211,7 +202,7 @@ class Stepper:
         # astype(copy=False): no copies in the Newton loop when the dtypes already agree
         ssq = step_residual(self.S, z.astype(dt, copy=False), qh.astype(dt, copy=False),
                             vh.astype(dt, copy=False), coef.bh2, coef.gh, self.scale,
-                            self._weights(coef), self.b0, self.b1, c, cd, cdd, F, T,
+                            coef.arrays[3], self.b0, self.b1, c, cd, cdd, F, T,
                             self.n_dof, R_hist.astype(dt, copy=False), R)
         return R, float(np.sqrt(ssq))
 
@@ -219,7 +210,7 @@ class Stepper:
         sc = self.scale if scale is None else scale
         if F is None:
             F = np.ascontiguousarray(self.system.time_arrays(t1)[3], dtype=self.dtype)
-        step_matrix(self.S, z, qh, vh, coef.bh2, coef.gh, sc, self._weights(coef), self.b0,
+        step_matrix(self.S, z, qh, vh, coef.bh2, coef.gh, sc, coef.arrays[3], self.b0,
                     self.b1, F, self.data)
 
     def matrix(self) -> sp.csc_matrix:
