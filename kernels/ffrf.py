@@ -26,7 +26,9 @@ With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)``, ``Ĩ = [[0, -1], [1, 0]]`` (DE
 and the body's share of the generalized-alpha residual is
 ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)``.
 
-All kernels run unchanged for float64 and complex128 arrays.
+All kernels run unchanged for float64 and complex128 arrays, and for a real state with complex
+body data (a sensitivity pseudo-load): temporaries that hold products with the data take the
+dtype of the output array (``R`` or ``data``), those that hold the state its own.
 """
 
 import numpy as np
@@ -35,7 +37,7 @@ from numba import njit
 
 @njit(cache=True)
 def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-                   elems, n_flex, full):
+                   elems, n_flex, full, like):
     """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
 
     ``full=False`` (the residual) forms ``Mq, Ma, Sq, Sv`` and the elastic plus damping force
@@ -46,14 +48,14 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     pseudo-load evaluates just the parts a design variable changes).
 
     Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd`` (each (n_flex + 1,); zeros where not
-    formed). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and write
+    formed; dtype of ``like``, the caller's output array). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and write
     the extra slot ``n_flex``, which holds zero coordinates, so the element loop has no branches.
     """
-    dt = q.dtype
+    dt = like.dtype
     m = n_flex + 1
-    qf = np.zeros(m, dtype=dt)
-    vf = np.zeros(m, dtype=dt)
-    af = np.zeros(m, dtype=dt)
+    qf = np.zeros(m, dtype=q.dtype)
+    vf = np.zeros(m, dtype=q.dtype)
+    af = np.zeros(m, dtype=q.dtype)
     for k in range(n_flex):
         qf[k] = q[flex_dof[k]]
         vf[k] = v[flex_dof[k]]
@@ -66,9 +68,9 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     Sa = np.zeros(m, dtype=dt)
     Kd = np.zeros(m, dtype=dt)
     idx = np.empty(6, dtype=np.int64)
-    ql = np.empty(6, dtype=dt)
-    vl = np.empty(6, dtype=dt)
-    al = np.empty(6, dtype=dt)
+    ql = np.empty(6, dtype=q.dtype)
+    vl = np.empty(6, dtype=q.dtype)
+    al = np.empty(6, dtype=q.dtype)
     dl = np.empty(6, dtype=dt)
     for e in elems:
         beta = body_damp[elem_body[e]]
@@ -83,9 +85,9 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
         Se = elem_St[e]
         Ke = elem_K[e]
         for i in range(6):
-            mq = 0.0 * ql[0]
-            sq = 0.0 * ql[0]
-            sv = 0.0 * ql[0]
+            mq = 0.0 * dl[0]
+            sq = 0.0 * dl[0]
+            sv = 0.0 * dl[0]
             for j in range(6):
                 mq += Me[i, j] * ql[j]
                 sq += Se[i, j] * ql[j]
@@ -95,16 +97,16 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
             Sq[k] += sq
             Sv[k] += sv
             if full:
-                mv = 0.0 * ql[0]
-                sa = 0.0 * ql[0]
+                mv = 0.0 * dl[0]
+                sa = 0.0 * dl[0]
                 for j in range(6):
                     mv += Me[i, j] * vl[j]
                     sa += Se[i, j] * al[j]
                 Mv[k] += mv
                 Sa[k] += sa
             else:
-                ma = 0.0 * ql[0]
-                kd = 0.0 * ql[0]
+                ma = 0.0 * dl[0]
+                kd = 0.0 * dl[0]
                 for j in range(6):
                     ma += Me[i, j] * al[j]
                     kd += Ke[i, j] * dl[j]
@@ -181,7 +183,7 @@ def body_residual(
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K, elems,
-        n_flex, False
+        n_flex, False, R
     )
     gx = gravity[0]
     gy = gravity[1]
@@ -272,7 +274,7 @@ def body_jacobian(
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-        np.arange(elem_fdof.shape[0]), n_flex, True
+        np.arange(elem_fdof.shape[0]), n_flex, True, data
     )
     all_flex = np.ones(n_flex, dtype=np.bool_)
     gx = gravity[0]

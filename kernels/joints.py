@@ -41,7 +41,9 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     (Values, not output arrays: scratch arrays passed into a helper cost ~2.7x the whole
     constraint residual in refcounting and lost optimization, measured.)
     """
-    zero = q[0] * 0.0
+    # one scalar type for every returned value: that of the state and the point together (a
+    # sensitivity pseudo-load evaluates complex points at a real state)
+    zero = q[0] * 0.0 + ux0 * 0.0
     one = zero + 1.0
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     vth = v[dofs[2]] if dofs[2] >= 0 else zero
@@ -49,7 +51,7 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     if kind == 2:
         phi = q[dofs[5]] if dofs[5] >= 0 else zero
         z6 = (zero, zero, zero, zero, zero, zero)
-        return th + phi, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
+        return th + phi + zero, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
     wx = q[dofs[3]] if dofs[3] >= 0 else zero
     vwx = v[dofs[3]] if dofs[3] >= 0 else zero
     awx = a[dofs[3]] if dofs[3] >= 0 else zero
@@ -57,8 +59,8 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     vwy = v[dofs[4]] if dofs[4] >= 0 else zero
     awy = a[dofs[4]] if dofs[4] >= 0 else zero
     Rk = q[dofs[kind]] if dofs[kind] >= 0 else zero
-    c = np.cos(th)
-    s = np.sin(th)
+    c = np.cos(th) + zero
+    s = np.sin(th) + zero
     ux = ux0 + wx
     uy = uy0 + wy
     # A = [[c, -s], [s, c]], AĨ = [[-s, -c], [c, -s]]; row kind of A u, AĨ u, A and AĨ
@@ -93,14 +95,14 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
 def _side_hessian(kind, dofs, ux0, uy0, q):
     """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side
     (symmetric; all zero for angle rows)."""
-    zero = q[0] * 0.0
+    zero = q[0] * 0.0 + ux0 * 0.0  # the scalar type of state and point (see _side)
     if kind == 2:
         return zero, zero, zero
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     wx = q[dofs[3]] if dofs[3] >= 0 else zero
     wy = q[dofs[4]] if dofs[4] >= 0 else zero
-    c = np.cos(th)
-    s = np.sin(th)
+    c = np.cos(th) + zero
+    s = np.sin(th) + zero
     ux = ux0 + wx
     uy = uy0 + wy
     if kind == 0:
