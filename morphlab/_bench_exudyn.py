@@ -140,12 +140,12 @@ def build(p: dict, n_elements: int = 8) -> ml.Model:
 
 def tip_y(result):
     """Response: y-coordinate of the free end at the final time [mm] (complex-safe)."""
-    return result.node_positions("strip")[-1, -1, 1]
+    return result.node_positions("strip", -1)[-1, 1]
 
 
 def morphlab_tip(result) -> np.ndarray:
     """Final tip position (x, y) [mm] of a morphlab result."""
-    return np.real(result.node_positions("strip")[-1, -1])
+    return np.real(result.node_positions("strip", -1)[-1])
 
 
 # ------------------------------------------------------------------------------- Exudyn side

@@ -274,7 +274,7 @@ def build(p: dict | None = None, *, n_elements: int = N_ELEMENTS) -> Model:
 def shape_errors(result) -> np.ndarray:
     """Distance of every skin node from its target at the final time (paper eq. 41),
     (n_nodes,) [mm]; complex-safe."""
-    pos = result.node_positions("skin")[-1]
+    pos = result.node_positions("skin", -1)
     return distance(pos, target(n_elements=pos.shape[0] - 1))
 
 

@@ -76,7 +76,7 @@ def skin_compliance(nodes_index=None, *, t_w: float = 2.0, E: float = E_AL,
             m = _skin_only(X, t_w, E)
             m.add_force("skin", at=X[node], force=(1.0 - c, float(c)), name="unit")
             r = static(m, t=1.0)
-            G[:, :, j, c] = r.node_positions("skin")[-1] - X
+            G[:, :, j, c] = r.node_positions("skin", -1) - X
             S[..., j, c] = r.stress("skin")[-1]
     return G, S
 

@@ -82,9 +82,9 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     sens = sensitivities(build, p0, responses, method="direct", progress=progress,
                          **settings)
     res = sens.result
-    final = res.node_positions(body)[-1]
+    final = res.node_positions(body, -1)
     e_k = np.real(distance(final, target))
-    de_k = np.real(sens.derivative(lambda r: distance(r.node_positions(body)[-1], target)))
+    de_k = np.real(sens.derivative(lambda r: distance(r.node_positions(body, -1), target)))
     dsig = np.real(sens.stress(body))
     stress = np.real(res.stress(body))
 

@@ -226,3 +226,14 @@ def test_variable_unused_by_build_is_rejected():
 def test_non_scalar_response_is_rejected():
     with pytest.raises(ml.SensitivityError, match="scalar"):
         _sens({"y": lambda r: r.node_positions("strip")[-1, :, 1]}, variables=["F"])
+
+
+def test_node_positions_at_selected_times_equal_the_full_history(pair):
+    """``node_positions(body, times)`` computes only the selected times; the values must be the
+    full history's rows bit for bit (same operations per row), for the real result and for a
+    complex (perturbed) one."""
+    direct, _ = pair
+    for res in (direct.result, direct._perturbed[0]):
+        full = res.node_positions("strip")
+        for sel in (-1, 0, slice(2, 9, 3), np.array([1, 4])):
+            np.testing.assert_array_equal(res.node_positions("strip", sel), full[sel])
