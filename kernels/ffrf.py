@@ -48,8 +48,10 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     pseudo-load evaluates just the parts a design variable changes).
 
     Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd`` (each (n_flex + 1,); zeros where not
-    formed; dtype of ``like``, the caller's output array). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and write
-    the extra slot ``n_flex``, which holds zero coordinates, so the element loop has no branches.
+    formed; the gathered state in its dtype, the products in that of ``like``, the caller's
+    output array). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and
+    write the extra slot ``n_flex``, which holds zero coordinates, so the element loop has no
+    branches.
     """
     dt = like.dtype
     m = n_flex + 1
