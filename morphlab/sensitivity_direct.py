@@ -274,6 +274,7 @@ def direct_run(sys0, settings, names, perturbed_cs, build, p0, steps, method, re
     stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0}
     work = np.zeros((2, n), dtype=data["dtype"])
     mats = np.zeros((6, sys0.nnz))
+    zmat = np.zeros(sys0.nnz, dtype=np.complex128)
     J = np.zeros(sys0.nnz)
     rhs = np.zeros((n, n_x))
     r = np.zeros((n, n_x))
@@ -293,7 +294,7 @@ def direct_run(sys0, settings, names, perturbed_cs, build, p0, steps, method, re
             old, k_old = (info.prev.q, info.prev.v, info.prev.a, info.prev.lam), k - 1
         state_loads(stp.S, new.q, new.v, new.a, new.lam, w_new, has_old, *old, w_old,
                     info.table[3], k, stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh,
-                    sys0.indices, sys0.indptr, n_dof, *hist, k_old, pc, mats, J, rhs)
+                    sys0.indices, sys0.indptr, n_dof, *hist, k_old, pc, mats, zmat, J, rhs)
         explicit_loads(S_nom, P, parts, new.q, new.v, new.a, new.lam, w_new, has_old, *old,
                        w_old, stp.scale, stp.b0, stp.b1, TAB, tab0, k_old, k, n_dof, pert, work,
                        rhs)
