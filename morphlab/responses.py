@@ -70,19 +70,17 @@ def _ks_signed(values, rho: float, signs: tuple):
             sin_y = y
         else:
             cos_y, sin_y = np.cos(rho * y), np.sin(rho * y) / rho
-    total = 0.0j
+    re = im = 0.0
     for sg in signs:
         np.multiply(x, sg * rho, out=w)
         w -= rho * s
         np.exp(w, out=w)
-        if not complex_input:
-            total += float(np.sum(w))
-            continue
-        re = float(np.sum(w)) if cos_y is None else float(np.sum(w * cos_y))
-        im = sg * rho * float(np.sum(np.multiply(w, sin_y, out=w)))  # w is spent here
-        total += complex(re, im)
-    out = s + np.log(total) / rho
-    return out if complex_input else float(np.real(out))
+        re += float(np.sum(w)) if cos_y is None else float(np.sum(w * cos_y))
+        if complex_input:
+            im += sg * rho * float(np.sum(np.multiply(w, sin_y, out=w)))  # w is spent here
+    if complex_input:
+        return s + np.log(complex(re, im)) / rho
+    return s + float(np.log(re)) / rho
 
 
 def max_by_real(values):

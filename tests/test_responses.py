@@ -130,6 +130,30 @@ def test_ks_is_shift_safe_against_overflow():
     assert ks == pytest.approx(1000.0 + np.log1p(np.exp(-10.0)) / 10.0, rel=1e-15)
 
 
+@pytest.mark.parametrize("imag_scale", [1e-30, 0.3])
+def test_ks_of_complex_input_equals_the_complex_formula(imag_scale):
+    """Complex input is summed with real exponentials times cos/sin (or, for a complex step's
+    tiny imaginary parts, without the trigonometry); it must be the complex number
+    ``s + ln(sum exp(rho (v - s))) / rho`` formed with NumPy's complex exp, for both KS forms
+    and any layout (a transposed view, as Result.stress returns). The terms are O(1) and
+    positive-weighted, so the agreement is round-off: 1e-13 relative on the real part, and
+    1e-12 on the imaginary part (imag_scale = 1e-30 carries the derivative, scaled back)."""
+    rng = np.random.default_rng(3)
+    rho = 0.7
+    v = (rng.normal(scale=5.0, size=(6, 4, 5))
+         + 1j * imag_scale * rng.normal(size=(6, 4, 5))).transpose(2, 0, 1)
+
+    def formula(vals):
+        x = vals.ravel()
+        s = np.max(np.real(x))
+        return s + np.log(np.sum(np.exp(rho * (x - s)))) / rho
+
+    for got, ref in ((R.ks(v, rho), formula(v)),
+                     (R.ks_abs(v, rho), formula(np.concatenate([v.ravel(), -v.ravel()])))):
+        assert np.real(got) == pytest.approx(np.real(ref), rel=1e-13)
+        assert np.imag(got) / imag_scale == pytest.approx(np.imag(ref) / imag_scale, rel=1e-12)
+
+
 def test_ks_rejects_bad_input():
     with pytest.raises(ml.ModelError):
         R.ks([], 1.0)
