@@ -1,0 +1,107 @@
+"""Markdown tables of a benchmark record (:mod:`morphlab.bench` measures, this module renders;
+``BENCHMARKS.md`` quotes the output). Reads only the JSON-shaped dict the suite writes, so a
+saved ``benchmarks.json`` can be rendered again with ``table(json.load(fh))``."""
+
+from __future__ import annotations
+
+import json
+
+
+def table(results: dict) -> str:
+    """The results as Markdown tables."""
+    lines = []
+    m = results["cases"].get("morphing")
+    if m:
+        lines += ["### Morphing leading edge (Table 2 on this machine)", "",
+                  "| run | median [s] | min | max | / primal |", "|---|---|---|---|---|"]
+        prim = m["primal"]["median"]
+        for key, label in (
+                ("primal", "one primal run: build, compile, simulate, 3 responses"),
+                ("direct", "direct differentiation, 5 variables (values and gradients)"),
+                ("direct_fd", "direct with FD partial derivatives (paper's variant)"),
+                ("finite_difference", "finite differences (n_x + 1 runs)"),
+                ("primal_solver_only", "simulate a compiled model only (no build, no "
+                                       "responses)"),
+                ("primal_modified_newton", "the same with modified Newton (primal only)")):
+            if key not in m:
+                continue
+            s = m[key]
+            lines.append(f"| {label} | {s['median']:.4f} | {s['min']:.4f} | {s['max']:.4f} | "
+                         f"{s['median'] / prim:.2f} |")
+        rt = m["ratios"]
+        lines += ["", f"finite differences / direct = {rt['finite_difference_over_direct']:.2f}"
+                      f"; direct / simulate-only = "
+                      f"{rt.get('direct_over_primal_solver_only', float('nan')):.2f}; "
+                      f"{m['steps']} steps, {m['newton_iterations_per_step']:.2f} Newton "
+                      "iterations per step.", ""]
+        if "direct_parts_s" in m:
+            d = m["direct_parts_s"]
+            lines += ["Inside a direct run (its own timers, median): " + ", ".join(
+                f"{k} {v:.4f} s" for k, v in d.items()), ""]
+    s = results["cases"].get("startup")
+    if s:
+        lines += ["### Start-up", "", "| measure | median [s] |", "|---|---|",
+                  f"| import morphlab | {s['import']['median']:.3f} |",
+                  f"| fresh process to first result, empty Numba cache | "
+                  f"{s['cold_first_result']['median']:.2f} |",
+                  f"| fresh process to first result, filled cache | "
+                  f"{s['warm_first_result']['median']:.2f} |", ""]
+    e = results["cases"].get("elements")
+    if e:
+        lines += ["### Growth with elements", "",
+                  "| elements | DOFs | primal per step [ms] | direct per step [ms] | direct "
+                  "set-up + responses [s] | Newton it./step | peak memory [MiB] |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in e["rows"]:
+            dps = r["direct_per_step"]
+            dps = dps[0] if isinstance(dps, list) else dps
+            extra = r.get("direct_setup_s", float("nan")) + r.get("direct_responses_s", 0.0)
+            lines.append(f"| {r['n_elements']} | {r['n_dof']} | "
+                         f"{1e3 * r['primal_per_step'][0]:.3f} | {1e3 * dps:.3f} | "
+                         f"{extra:.3f} | {r['newton_iterations_per_step']:.2f} | "
+                         f"{r['peak_memory_MiB']:.0f} |")
+        f = e["fitted_exponent"]
+        lines += ["", f"fitted exponent (>= 100 elements): primal {f['primal_per_step']:.2f}, "
+                      f"direct {f['direct_per_step']:.2f}", ""]
+    v = results["cases"].get("variables")
+    if v:
+        lines += [f"### Growth with design variables ({v.get('n_elements', 30)}-element skin)",
+                  "", "| n_x | primal [s] | direct [s] | direct / primal | FD / primal "
+                  "(n_x+1) |", "|---|---|---|---|---|"]
+        for r in v["rows"]:
+            lines.append(f"| {r['n_x']} | {r['primal']['median']:.4f} | "
+                         f"{r['direct']['median']:.4f} | {r['direct_over_primal']:.2f} | "
+                         f"{r['finite_difference_over_primal_estimate']} |")
+        if "fit" in v:
+            lines += ["", f"straight-line fit: direct / primal = {v['fit']['intercept']:.2f} + "
+                          f"{v['fit']['per_variable']:.3f} n_x"]
+        lines.append("")
+    p = results["cases"].get("profile")
+    if p:
+        lines += ["### Where the time goes (direct run, cProfile)", "",
+                  "| part | seconds | share |", "|---|---|---|"]
+        for k, sec in sorted(p["seconds"].items(), key=lambda kv: -kv[1]):
+            lines.append(f"| {k} | {sec:.4f} | {100 * p['fractions'][k]:.1f} % |")
+        lines.append("")
+    x = results["cases"].get("exudyn")
+    if x and "rows" in x:
+        lines += ["### Side by side with Exudyn (flexible pendulum, same elements and steps)", "",
+                  "| elements | morphlab full Newton [µs/step] | Exudyn full Newton | morphlab "
+                  "modified Newton | Exudyn default (modified) | morphlab direct [s] | "
+                  "Exudyn FD [s] | Exudyn FD / morphlab direct |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in x["rows"]:
+            p, s = r["primal"], r["sensitivities"]["timing_s"]
+            mod = p.get("morphlab_modified_newton")
+            mod_s = f"{1e6 * mod['per_step_s']['median']:.0f}" if mod else "-"
+            lines.append(
+                f"| {r['n_elements']} | {1e6 * p['morphlab']['per_step_s']['median']:.0f} | "
+                f"{1e6 * p['exudyn_full_newton']['per_step_s']['median']:.0f} | {mod_s} | "
+                f"{1e6 * p['exudyn_modified_newton']['per_step_s']['median']:.0f} | "
+                f"{s['morphlab_direct']['median']:.3f} | "
+                f"{s['exudyn_forward_difference']['median']:.3f} | "
+                f"{r['sensitivities']['ratios']['exudyn_fd_over_morphlab_direct']:.2f} |")
+        lines += ["", x.get("notes", ""), ""]
+    elif x:
+        lines += ["### Exudyn", "", x.get("skipped", json.dumps(x)), ""]
+    return "\n".join(lines)
