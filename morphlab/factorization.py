@@ -59,16 +59,21 @@ class StepFactorization:
         self._B = None
         self._natural = None
 
+    @property
+    def dense(self) -> bool:
+        """Are the matrices factored by the dense LU (at most :data:`DENSE_MAX` unknowns)?"""
+        return self.n <= DENSE_MAX
+
     def __call__(self, data: np.ndarray):
         """Factor the matrix with CSC values ``data`` (nnz,)."""
-        if self.n <= DENSE_MAX:
+        if self.dense:
             A = np.empty((self.n, self.n), dtype=self.dtype)
             piv = np.empty(self.n, dtype=np.int64)
             csc_to_dense(data, self.indices, self.indptr, A)
             bad = lu_factor(A, piv)
             if bad >= 0:
                 raise RuntimeError(f"Factor is exactly singular (pivot {bad})")
-            return _DenseLU(A, piv)
+            return DenseLU(A, piv)
         if self._perm is None:
             A = sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
             lu = splu(A, **SPLU_OPTIONS)
@@ -89,7 +94,7 @@ class StepFactorization:
         return _PermutedLU(self._natural(self._B.data), q)
 
 
-class _DenseLU:
+class DenseLU:
     """Dense ``P A = L U`` of a small step matrix (:mod:`morphlab.kernels.dense`)."""
 
     __slots__ = ("LU", "piv")

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from .compile import System
 from .errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
-from .factorization import StepFactorization
+from .factorization import DenseLU, StepFactorization
 from .integrator import (
     INITIAL,
     SCHEMES,
@@ -36,7 +36,13 @@ from .integrator import (
     newmark_update,
     step_coefficients,
 )
-from .kernels.assemble import add_residual, apply_correction, step_matrix, step_residual
+from .kernels.assemble import (
+    add_residual,
+    apply_correction,
+    dense_newton_iteration,
+    step_matrix,
+    step_residual,
+)
 
 
 class State(NamedTuple):
@@ -231,12 +237,7 @@ class Stepper:
         try:
             lu = self._lu()
         except RuntimeError as exc:
-            raise SingularMatrixError(
-                f"singular saddle-point matrix at t={t1:.6g}: {exc}. Look for redundant joints, "
-                "a body without mass in its free directions, or a mechanism locked in a "
-                "singular position",
-                time=t1,
-            ) from None
+            raise self._singular(t1, str(exc)) from None
         self.n_factorizations += 1
         return lu
 
@@ -264,20 +265,7 @@ class Stepper:
         if s.newton == "modified" and coef is self.step_coef:
             return self._modified_newton(z, qh, vh, t1, coef, R_hist, step, ta)
         for it in range(1, s.max_iter + 1):
-            R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
-            try:
-                lu = self.factor(z, qh, vh, t1, coef, F=F)
-            except SingularMatrixError as err:
-                err.step = step
-                err.residual = r_norm
-                err.dominant = self.dominant(R)
-                raise
-            z, dz_max, finite = apply_correction(z, lu.solve(-R), self.n_dof)
-            if not finite:
-                bad = self.non_finite(z)
-                raise NonFiniteError(
-                    f"non-finite Newton correction at t={t1:.6g} (step {step}) in "
-                    f"{', '.join(bad)}", time=t1, step=step, residual=r_norm, dominant=bad)
+            z, lu, r_norm, dz_max = self._iteration(z, qh, vh, t1, coef, R_hist, ta, step, it)
             # linear in z for the initial accelerations (h = 0): one solve is exact
             err = 0.0 if coef.h == 0.0 else coef.bh2 * dz_max / L
             hist.append((r_norm, err))
@@ -296,14 +284,71 @@ class Stepper:
             f"{np.linalg.norm(R):.3g}; dominant equations: {', '.join(self.dominant(R))}",
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
+    def _iteration(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
+        """One full Newton iteration from ``z``: ``(z + dz, lu, |R(z)|, |dz_a|_max)`` with
+        ``lu`` the factorization of the matrix at ``z``. Raises :class:`NonFiniteError` for a
+        non-finite residual or correction and :class:`SingularMatrixError`, naming where.
+
+        A matrix small enough for the dense LU (:meth:`StepFactorization.dense`) is handled by
+        one compiled call (:func:`dense_newton_iteration`: residual, matrix, factorization,
+        solve and update), the same kernels as the step-by-step path below, bitwise the same
+        iterate. Measured on the 8-element pendulum of the Exudyn comparison (29 unknowns,
+        1000 steps, 2 iterations per step): 60 ms per run against 73 ms in five calls."""
+        dt = self.dtype
+        if self._factorization.dense and z.dtype == qh.dtype == vh.dtype == R_hist.dtype == dt:
+            n = self.n
+            R = np.empty(n, dtype=dt)
+            LU = np.empty((n, n), dtype=dt)
+            piv = np.empty(n, dtype=np.int64)
+            z1, ssq, dz_max, finite, bad = dense_newton_iteration(
+                self.S, z, qh, vh, coef.bh2, coef.gh, self.scale, coef.arrays[3], self.b0,
+                self.b1, *ta, self.n_dof, R_hist, self.system.indices, self.system.indptr, R,
+                self.data, LU, piv)
+            r_norm = float(np.sqrt(ssq))
+            if not np.isfinite(r_norm):
+                raise self._non_finite_residual(R, t1, step, it)
+            if bad >= 0:
+                raise self._singular(t1, f"Factor is exactly singular (pivot {bad})", step,
+                                     r_norm, R)
+            self.n_factorizations += 1
+            lu = DenseLU(LU, piv)
+        else:
+            R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
+            try:
+                lu = self.factor(z, qh, vh, t1, coef, F=ta[3])
+            except SingularMatrixError as err:
+                err.step = step
+                err.residual = r_norm
+                err.dominant = self.dominant(R)
+                raise
+            z1, dz_max, finite = apply_correction(z, lu.solve(-R), self.n_dof)
+        if not finite:
+            bad = self.non_finite(z1)
+            raise NonFiniteError(
+                f"non-finite Newton correction at t={t1:.6g} (step {step}) in "
+                f"{', '.join(bad)}", time=t1, step=step, residual=r_norm, dominant=bad)
+        return z1, lu, r_norm, dz_max
+
+    def _singular(self, t1, detail, step=None, r_norm=None, R=None) -> SingularMatrixError:
+        err = SingularMatrixError(
+            f"singular saddle-point matrix at t={t1:.6g}: {detail}. Look for redundant joints, "
+            "a body without mass in its free directions, or a mechanism locked in a singular "
+            "position", time=t1)
+        if step is not None:
+            err.step, err.residual, err.dominant = step, r_norm, self.dominant(R)
+        return err
+
+    def _non_finite_residual(self, R, t1, step, it) -> NonFiniteError:
+        bad = self.non_finite(R)
+        return NonFiniteError(
+            f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
+            f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+
     def _finite_residual(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
         """``(R, |R|)`` of the step; a NaN or Inf raises :class:`NonFiniteError` naming where."""
         R, r_norm = self._residual(z, qh, vh, t1, coef, R_hist, ta)
         if not np.isfinite(r_norm):
-            bad = self.non_finite(R)
-            raise NonFiniteError(
-                f"non-finite residual at t={t1:.6g} (step {step}, iteration {it}) in "
-                f"{', '.join(bad)}", time=t1, step=step, residual=float("nan"), dominant=bad)
+            raise self._non_finite_residual(R, t1, step, it)
         return R, r_norm
 
     def _modified_newton(self, z, qh, vh, t1, coef, R_hist, step, ta):

@@ -221,7 +221,8 @@ def _count_factorizations(monkeypatch):
     """Count every call of a sparse factorization or sparse direct solve, wherever bound
     (scipy itself and the names imported into the morphlab modules, including the SuperLU
     entry point the solver calls directly, ``morphlab.factorization._gstrf``, and the dense LU of
-    small step matrices, ``morphlab.factorization.lu_factor``)."""
+    small step matrices: ``morphlab.factorization.lu_factor`` and the compiled Newton iteration
+    that factors inside, ``morphlab.solver.dense_newton_iteration``)."""
     calls = {"n": 0}
 
     def wrap(fn):
@@ -232,7 +233,8 @@ def _count_factorizations(monkeypatch):
 
     for mod in (scipy.sparse.linalg, morphlab.factorization, morphlab.solver,
                 morphlab.sensitivity):
-        for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf", "lu_factor"):
+        for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf", "lu_factor",
+                     "dense_newton_iteration"):
             if getattr(mod, name, None) is not None:
                 monkeypatch.setattr(mod, name, wrap(getattr(mod, name)))
     return calls
