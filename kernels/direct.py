@@ -16,9 +16,12 @@ along ``(ds_n/dp_i, e_i)``. It is split into
   (and cancel in a difference): the derivative is exact, and a thickness variable of a few
   elements costs a few elements, not a whole residual.
 
-Then (in Python) one solve with the primal's last factorization, iterative refinement
-against the exact converged matrix (:func:`csc_residual`, the matrix comes from
-:func:`state_loads`), and :func:`update_sensitivities`, the Newmark update of the histories.
+Then one solve with the primal's last factorization, iterative refinement against the exact
+converged matrix (:func:`csc_residual`, the matrix comes from :func:`state_loads`), and
+:func:`update_sensitivities`, the Newmark update of the histories. A run forms the explicit
+parts of a block of steps in one call (:func:`explicit_block`); with dense factors the whole
+recursion over the block is one call as well (:func:`dense_recursion`), with SuperLU's the
+solves are made from Python.
 
 The step coefficients travel as two small arrays: ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)``
 and ``upd = (ga, gan, ggn)`` (``morphlab.integrator.StepCoefficients``), so that::
@@ -35,6 +38,7 @@ import numpy as np
 from numba import njit
 
 from .assemble import add_residual_parts, fill_matrix
+from .dense import lu_solve
 
 # positions in ``S`` of the floating-point arrays that a design variable can change; a
 # sensitivity run stacks them over the design variables (leading axis n_x)
@@ -83,7 +87,7 @@ def _subtract_product(data, indices, indptr, n_cols, X, out):
 @njit(cache=True)
 def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_new, scale, b0,
                 b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, Z, J, rhs):
-    """Overwrite ``rhs`` (n, n_x) with minus the state part of every pseudo-load, and ``J``
+    """Subtract the state part of every pseudo-load from ``rhs`` (n, n_x), and overwrite ``J``
     (nnz,) with the exact Newton matrix at the converged point (for the refinement).
 
     ``(q1, v1, a1, l1)``: the converged state at ``t_{n+1}``; ``(q0, v0, a0, l0)``: the state
@@ -110,7 +114,6 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
             dqh[r, i] = (DQ[i, kq, r] + h * DV[i, kv, r] + cqa * DA[i, ka, r]
                          + cqg * DG[i, kg, r])
             dvh[r, i] = DV[i, kv, r] + cva * DA[i, ka, r] + cvg * DG[i, kg, r]
-    rhs[:, :] = 0.0
     _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
     _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
     if has_old:
@@ -215,6 +218,50 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                 rhs[r, i] -= R[r].imag / h
         for k in flex:
             flex_on[k] = False
+
+
+@njit(cache=True)
+def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB, tab0,
+                   k_old, k_new, n_dof, pert, work, E):
+    """:func:`explicit_loads` of ``K`` consecutive steps in one call: step ``j`` goes from the
+    state ``(Q[j], V[j], A[j], L[j])`` at time index ``k_old[j]`` to ``(Q[j+1], ...)`` at
+    ``k_new[j]`` (state arrays (K + 1, width)); its explicit parts are subtracted from
+    ``E[j]`` (K, n, n_x). The partial derivatives need only the converged primal states, so
+    a run can form them for a block of steps at once (one call instead of K; each call
+    passes ~75 arrays)."""
+    for j in range(E.shape[0]):
+        explicit_loads(S, P, parts, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
+                       Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, TAB, tab0, k_old[j],
+                       k_new[j], n_dof, pert, work, E[j])
+
+
+@njit(cache=True)
+def dense_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale, b0, b1, bh2,
+                    gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, pc, upd, mats, Z, J, E,
+                    LU, piv, refine, n_refine, r, x, refined):
+    """The sensitivity recursion over a block of steps in one call, for step matrices small
+    enough for the dense LU (``morphlab.factorization.DENSE_MAX``). Per step ``j``, as the
+    SuperLU path does from Python (``morphlab.sensitivity_direct._DirectPass.flush``): the
+    state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the explicit part;
+    the solve with the step's factors ``LU[j], piv[j]`` ((K, n, n), (K, n);
+    ``morphlab.kernels.dense``); ``n_refine`` refinement sweeps against the exact converged
+    matrix where ``refine[j]``, writing the relative residual to ``refined[j]``; the Newmark
+    update (:func:`update_sensitivities`). ``r``, ``x``: (n, n_x) scratch."""
+    for j in range(E.shape[0]):
+        rhs = E[j]
+        state_loads(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j], V[j],
+                    A[j], L[j], w_old, F, k_new[j], scale, b0, b1, bh2, gh, indices, indptr,
+                    n_dof, DQ, DV, DA, DG, DLAM, k_old[j], pc, mats, Z, J, rhs)
+        x[:, :] = rhs
+        lu_solve(LU[j], piv[j], x)
+        if refine[j]:
+            for _ in range(n_refine):
+                csc_residual(J, indices, indptr, x, rhs, r)
+                lu_solve(LU[j], piv[j], r)
+                x += r
+            rr, bb = csc_residual(J, indices, indptr, x, rhs, r)
+            refined[j] = rr / max(bb, 1e-300)
+        update_sensitivities(DQ, DV, DA, DG, DLAM, k_new[j], x, scale, n_dof, pc, upd)
 
 
 @njit(cache=True)

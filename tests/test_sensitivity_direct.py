@@ -276,6 +276,38 @@ def test_refinement_residuals_at_round_off(name):
     assert max(res) < 1e-12
 
 
+@pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
+@pytest.mark.parametrize("name", CASES)
+def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme):
+    """A direct run keeps the converged steps and solves their sensitivities in blocks
+    (``sensitivity_direct.BLOCK_BYTES``): the same kernels on the same data, called at other
+    times, so one step per block, a few steps per block and the whole run in one block must
+    give the same numbers bit for bit. For the SuperLU path as well (DENSE_MAX = 0), whose
+    recursion runs from Python instead of in one compiled call, and for the paper's weighting,
+    whose residual also reads the state at the start of each step (for a block's first step
+    that state belongs to the previous block)."""
+    import morphlab.sensitivity_direct as sd
+
+    build, p0, resp = responses_for(name)
+    default = sd.BLOCK_BYTES
+    for dense_max in (morphlab.factorization.DENSE_MAX, 0):
+        monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", dense_max)
+        runs = []
+        for block_bytes in (default, 1, 50_000):
+            monkeypatch.setattr(sd, "BLOCK_BYTES", block_bytes)
+            runs.append(ml.sensitivities(build, p0, resp, method="direct", store="all",
+                                         scheme=scheme, **RUN))
+        n_steps = runs[0].result.t.size - 1
+        # initial solve, then all steps in one block / one per block / a few per block
+        assert [r.stats["blocks"] for r in runs][:2] == [2, n_steps + 1]
+        assert 2 < runs[2].stats["blocks"] < n_steps + 1
+        for r in runs[1:]:
+            assert r.gradients == runs[0].gradients
+            for key in ("q", "v", "a", "lam"):
+                np.testing.assert_array_equal(r.state[key], runs[0].state[key])
+            assert r.stats["refinement_residual"] == runs[0].stats["refinement_residual"]
+
+
 def test_store_auto_keeps_the_histories_the_responses_read():
     """``store="auto"`` probes the responses: positions and a reaction need q and lam only; the
     gradients are the same as with every history kept (the others still advance, over two
