@@ -151,3 +151,46 @@ def dense_newton_iteration(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, 
     lu_solve(LU, piv, dz)
     z_new, dz_max, finite = apply_correction(z, dz[:, 0], n_dof)
     return z_new, ssq, dz_max, finite, bad
+
+
+@njit(cache=True)
+def dense_newton(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
+                 indices, indptr, linear, length, tol, max_iter, polish, R, data, LU, piv, hist):
+    """Full Newton–Raphson on a step with a dense-LU matrix, in one call: iterations of
+    :func:`dense_newton_iteration` until the position correction ``bh2 |dz_a|_max / length``
+    is at most ``tol`` (``linear``: the initial solve, converged after one iteration), then
+    ``polish`` more (complex-step reference runs). The loop of ``morphlab.solver.Stepper.newton``
+    (which raises the errors), with the same arithmetic.
+
+    Returns ``(z, iterations, status, bad)``: ``iterations`` up to convergence (the polish ones not
+    counted), ``hist[k] = (|R|, correction)`` of iteration ``k + 1``; ``LU, piv`` the last
+    factorization (at the iterate before the last correction). Status: 0 converged; 1
+    non-finite residual (``R`` holds it, ``z`` the iterate); 2 singular matrix (``R`` the
+    residual, ``bad`` the column without a nonzero pivot); 3 non-finite correction (``z``
+    the corrected iterate); 4 no convergence in ``max_iter`` iterations."""
+    done = 0  # the iteration that met the tolerance
+    it = 0
+    while True:
+        it += 1
+        z1, ssq, dz_max, finite, bad = dense_newton_iteration(
+            S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, indices,
+            indptr, R, data, LU, piv)
+        k = it if done == 0 else done
+        if done == 0:
+            hist[it - 1, 0] = np.sqrt(ssq)
+        if not np.isfinite(ssq):
+            return z, k, 1, -1
+        if bad >= 0:
+            return z, k, 2, bad
+        if not finite:
+            return z1, k, 3, -1
+        z = z1
+        if done == 0:
+            err = 0.0 if linear else bh2 * dz_max / length
+            hist[it - 1, 1] = err
+            if err <= tol:
+                done = it
+            elif it == max_iter:
+                return z, it, 4, -1
+        if done > 0 and it - done >= polish:
+            return z, done, 0, -1

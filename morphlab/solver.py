@@ -39,7 +39,7 @@ from .integrator import (
 from .kernels.assemble import (
     add_residual,
     apply_correction,
-    dense_newton_iteration,
+    dense_newton,
     step_matrix,
     step_residual,
 )
@@ -264,6 +264,9 @@ class Stepper:
         F = ta[3]
         if s.newton == "modified" and coef is self.step_coef:
             return self._modified_newton(z, qh, vh, t1, coef, R_hist, step, ta)
+        dt = self.dtype
+        if self._factorization.dense and z.dtype == qh.dtype == vh.dtype == R_hist.dtype == dt:
+            return self._dense_newton(z, qh, vh, t1, coef, R_hist, step, ta)
         for it in range(1, s.max_iter + 1):
             z, lu, r_norm, dz_max = self._iteration(z, qh, vh, t1, coef, R_hist, ta, step, it)
             # linear in z for the initial accelerations (h = 0): one solve is exact
@@ -277,57 +280,74 @@ class Stepper:
                     lu = self.factor(z, qh, vh, t1, coef, F=F)
                     z = z + lu.solve(-R)
                 return z, lu, it, hist
+        raise self._not_converged(z, qh, vh, t1, coef, R_hist, ta, step, err)
+
+    def _dense_newton(self, z, qh, vh, t1, coef, R_hist, step, ta):
+        """:meth:`newton` for a step matrix small enough for the dense LU
+        (:meth:`StepFactorization.dense`): the whole loop in one compiled call
+        (:func:`dense_newton`, the same kernels and arithmetic as the step-by-step loop, so
+        the same iterates), the errors raised here as there. Measured on the 8-element
+        pendulum of the Exudyn comparison (29 unknowns, 1000 steps, 2 iterations per step):
+        55 ms per run, against 60 ms with one compiled call per iteration and 73 ms with the
+        five calls per iteration of the step-by-step loop."""
+        s = self.settings
+        n, dt = self.n, self.dtype
+        R = np.empty(n, dtype=dt)
+        LU = np.empty((n, n), dtype=dt)
+        piv = np.empty(n, dtype=np.int64)
+        hist = np.zeros((s.max_iter, 2))
+        z, it, status, bad = dense_newton(
+            self.S, z, qh, vh, coef.bh2, coef.gh, self.scale, coef.arrays[3], self.b0,
+            self.b1, *ta, self.n_dof, R_hist, self.system.indices, self.system.indptr,
+            coef.h == 0.0, self.system.length_scale, s.tol, s.max_iter, self.polish, R,
+            self.data, LU, piv, hist)
+        if status == 0:
+            self.n_factorizations += it + self.polish
+            return z, DenseLU(LU, piv), it, [tuple(h) for h in hist[:it].tolist()]
+        self.n_factorizations += it - 1
+        r_norm = float(hist[it - 1, 0])
+        if status == 1:
+            raise self._non_finite_residual(R, t1, step, it)
+        if status == 2:
+            name = (self.system.dof_names + [f"constraint {c}" for c in
+                                             self.system.con_names])[bad]
+            raise self._singular(t1, f"no nonzero pivot left for the column of {name}", step,
+                                 r_norm, R)
+        if status == 3:
+            raise self._non_finite_correction(z, t1, step, r_norm)
+        raise self._not_converged(z, qh, vh, t1, coef, R_hist, ta, step, float(hist[it - 1, 1]))
+
+    def _iteration(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
+        """One full Newton iteration from ``z``: ``(z + dz, lu, |R(z)|, |dz_a|_max)`` with
+        ``lu`` the factorization of the matrix at ``z``. Raises :class:`NonFiniteError` for a
+        non-finite residual or correction and :class:`SingularMatrixError`, naming where."""
+        R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
+        try:
+            lu = self.factor(z, qh, vh, t1, coef, F=ta[3])
+        except SingularMatrixError as err:
+            err.step = step
+            err.residual = r_norm
+            err.dominant = self.dominant(R)
+            raise
+        z1, dz_max, finite = apply_correction(z, lu.solve(-R), self.n_dof)
+        if not finite:
+            raise self._non_finite_correction(z1, t1, step, r_norm)
+        return z1, lu, r_norm, dz_max
+
+    def _not_converged(self, z, qh, vh, t1, coef, R_hist, ta, step, err) -> ConvergenceError:
+        s = self.settings
         R = self.residual(z, qh, vh, t1, coef, R_hist, time_arrays=ta)
-        raise ConvergenceError(
+        return ConvergenceError(
             f"Newton did not converge at t={t1:.6g} (step {step}) in {s.max_iter} iterations: "
             f"position correction {err:.3g} of the model size (tol {s.tol:.1g}), residual norm "
             f"{np.linalg.norm(R):.3g}; dominant equations: {', '.join(self.dominant(R))}",
             time=t1, step=step, residual=float(np.linalg.norm(R)), dominant=self.dominant(R))
 
-    def _iteration(self, z, qh, vh, t1, coef, R_hist, ta, step, it):
-        """One full Newton iteration from ``z``: ``(z + dz, lu, |R(z)|, |dz_a|_max)`` with
-        ``lu`` the factorization of the matrix at ``z``. Raises :class:`NonFiniteError` for a
-        non-finite residual or correction and :class:`SingularMatrixError`, naming where.
-
-        A matrix small enough for the dense LU (:meth:`StepFactorization.dense`) is handled by
-        one compiled call (:func:`dense_newton_iteration`: residual, matrix, factorization,
-        solve and update), the same kernels as the step-by-step path below, bitwise the same
-        iterate. Measured on the 8-element pendulum of the Exudyn comparison (29 unknowns,
-        1000 steps, 2 iterations per step): 60 ms per run against 73 ms in five calls."""
-        dt = self.dtype
-        if self._factorization.dense and z.dtype == qh.dtype == vh.dtype == R_hist.dtype == dt:
-            n = self.n
-            R = np.empty(n, dtype=dt)
-            LU = np.empty((n, n), dtype=dt)
-            piv = np.empty(n, dtype=np.int64)
-            z1, ssq, dz_max, finite, bad = dense_newton_iteration(
-                self.S, z, qh, vh, coef.bh2, coef.gh, self.scale, coef.arrays[3], self.b0,
-                self.b1, *ta, self.n_dof, R_hist, self.system.indices, self.system.indptr, R,
-                self.data, LU, piv)
-            r_norm = float(np.sqrt(ssq))
-            if not np.isfinite(r_norm):
-                raise self._non_finite_residual(R, t1, step, it)
-            if bad >= 0:
-                raise self._singular(t1, f"Factor is exactly singular (pivot {bad})", step,
-                                     r_norm, R)
-            self.n_factorizations += 1
-            lu = DenseLU(LU, piv)
-        else:
-            R, r_norm = self._finite_residual(z, qh, vh, t1, coef, R_hist, ta, step, it)
-            try:
-                lu = self.factor(z, qh, vh, t1, coef, F=ta[3])
-            except SingularMatrixError as err:
-                err.step = step
-                err.residual = r_norm
-                err.dominant = self.dominant(R)
-                raise
-            z1, dz_max, finite = apply_correction(z, lu.solve(-R), self.n_dof)
-        if not finite:
-            bad = self.non_finite(z1)
-            raise NonFiniteError(
-                f"non-finite Newton correction at t={t1:.6g} (step {step}) in "
-                f"{', '.join(bad)}", time=t1, step=step, residual=r_norm, dominant=bad)
-        return z1, lu, r_norm, dz_max
+    def _non_finite_correction(self, z1, t1, step, r_norm) -> NonFiniteError:
+        bad = self.non_finite(z1)
+        return NonFiniteError(
+            f"non-finite Newton correction at t={t1:.6g} (step {step}) in {', '.join(bad)}",
+            time=t1, step=step, residual=r_norm, dominant=bad)
 
     def _singular(self, t1, detail, step=None, r_norm=None, R=None) -> SingularMatrixError:
         err = SingularMatrixError(

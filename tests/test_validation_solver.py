@@ -11,6 +11,18 @@ import pytest
 from models import flexible_mechanism
 
 import morphlab as ml
+from morphlab import factorization
+
+
+@pytest.fixture(autouse=True, params=["dense", "superlu"])
+def newton_path(request, monkeypatch):
+    """Every test twice: small step matrices run the whole Newton loop in one compiled call
+    (``Stepper._dense_newton``), larger ones iterate from Python with SuperLU
+    (``Stepper._iteration``); both must fail the same way. ``DENSE_MAX = 0`` forces the
+    second on these small models."""
+    if request.param == "superlu":
+        monkeypatch.setattr(factorization, "DENSE_MAX", 0)
+    return request.param
 
 
 # ------------------------------------------------------------------------------- settings
@@ -188,6 +200,27 @@ def test_failure_in_the_initial_solve_keeps_an_empty_result():
     assert e.step == 0 and e.time == 0.0
     assert e.result.status == "failed" and e.result.n_t == 0
     assert e.result.q.shape == (0, e.result.system.n_dof)
+
+
+def test_singular_step_matrix_names_the_time_and_the_step(newton_path):
+    """A step matrix that is exactly singular (all masses, inertias and stiffnesses of a
+    four-bar scaled to zero, so the equation rows of the free directions vanish) raises
+    SingularMatrixError in the initial solve, at t = 0, with the residual and the dominant
+    equations; the dense path names the unknown whose column has no pivot."""
+    from morphlab.solver import Settings, Stepper
+
+    system = ml.compile_model(flexible_mechanism())
+    stp = Stepper(system, Settings(t_end=0.01, dt=1e-3))
+    stp.S = tuple(x * 0.0 if x.dtype.kind == "f" else x for x in stp.S)
+    with pytest.raises(ml.SingularMatrixError) as err:
+        stp.initial(0.0, system.q0, system.v0)
+    e = err.value
+    assert e.time == 0.0 and e.step == 0
+    assert "singular saddle-point matrix at t=0" in str(e)
+    assert np.isfinite(e.residual) and e.dominant
+    if newton_path == "dense":
+        names = system.dof_names + [f"constraint {c}" for c in system.con_names]
+        assert any(f"column of {name}." in str(e) for name in names)
 
 
 # ------------------------------------------------------------------- automatic step reduction
