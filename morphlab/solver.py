@@ -304,7 +304,7 @@ class Stepper:
         if status == 0:
             self.n_factorizations += it + self.polish
             return z, DenseLU(LU, piv), it, [tuple(h) for h in hist[:it].tolist()]
-        self.n_factorizations += it - 1
+        self.n_factorizations += it if status in (3, 4) else it - 1  # 1, 2: none at `it`
         r_norm = float(hist[it - 1, 0])
         if status == 1:
             raise self._non_finite_residual(R, t1, step, it)
