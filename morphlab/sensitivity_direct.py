@@ -260,10 +260,12 @@ BLOCK_BYTES = 64 * 2**20
 
 
 def _lu_bytes(lu) -> int:
-    """Approximate memory of a factorization from :mod:`morphlab.factorization`."""
+    """Approximate memory of a factorization from :mod:`morphlab.factorization`. SuperLU's:
+    ``24 nnz(L+U) + 40 kB``, fitted to the resident memory of 301 kept factorizations of the
+    morphing skin (measured 0.083 MiB each with 30 elements, 0.41 MiB with 300)."""
     inner = getattr(lu, "lu", None)
-    if inner is not None and hasattr(inner, "nnz"):  # SuperLU: values + row indices
-        return 12 * int(inner.nnz)
+    if inner is not None and hasattr(inner, "nnz"):
+        return 24 * int(inner.nnz) + 40_000
     arrays = [getattr(lu, k, None) for k in ("LU", "piv")]
     return sum(a.nbytes for a in arrays if isinstance(a, np.ndarray)) or 1
 

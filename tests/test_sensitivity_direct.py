@@ -291,10 +291,12 @@ def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme)
 
     build, p0, resp = responses_for(name)
     default = sd.BLOCK_BYTES
-    for dense_max in (morphlab.factorization.DENSE_MAX, 0):
+    # (DENSE_MAX, a budget of a few steps: dense factors ~7-17 kB per step here, SuperLU's
+    # ~50-60 kB by sensitivity_direct._lu_bytes)
+    for dense_max, few in ((morphlab.factorization.DENSE_MAX, 60_000), (0, 200_000)):
         monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", dense_max)
         runs = []
-        for block_bytes in (default, 1, 50_000):
+        for block_bytes in (default, 1, few):
             monkeypatch.setattr(sd, "BLOCK_BYTES", block_bytes)
             runs.append(ml.sensitivities(build, p0, resp, method="direct", store="all",
                                          scheme=scheme, **RUN))
