@@ -241,14 +241,19 @@ class Stepper:
         self.n_factorizations += 1
         return lu
 
+    @property
+    def unknown_names(self) -> list[str]:
+        """Name of each equation / unknown of a step: the DOFs, then ``"constraint <row>"``."""
+        return self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
+
     def non_finite(self, x, k=8) -> list[str]:
         """Names of the first ``k`` equations/unknowns with a NaN or Inf entry."""
-        names = self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
+        names = self.unknown_names
         return [names[i] for i in np.flatnonzero(~np.isfinite(x))[:k]]
 
     def dominant(self, R, k=3) -> list[str]:
         """Names of the ``k`` equations with the largest residual entries."""
-        names = self.system.dof_names + [f"constraint {c}" for c in self.system.con_names]
+        names = self.unknown_names
         idx = np.argsort(-np.abs(R))[:k]
         return [f"{names[i]} ({abs(R[i]):.3g})" for i in idx]
 
@@ -309,10 +314,8 @@ class Stepper:
         if status == 1:
             raise self._non_finite_residual(R, t1, step, it)
         if status == 2:
-            name = (self.system.dof_names + [f"constraint {c}" for c in
-                                             self.system.con_names])[bad]
-            raise self._singular(t1, f"no nonzero pivot left for the column of {name}", step,
-                                 r_norm, R)
+            raise self._singular(t1, "no nonzero pivot left for the column of "
+                                 f"{self.unknown_names[bad]}", step, r_norm, R)
         if status == 3:
             raise self._non_finite_correction(z, t1, step, r_norm)
         raise self._not_converged(z, qh, vh, t1, coef, R_hist, ta, step, float(hist[it - 1, 1]))
