@@ -161,6 +161,7 @@ class Stepper:
         self._factorization = StepFactorization(system.indices, system.indptr, self.n,
                                                 self.dtype)
         self.polish = 0  # extra Newton updates after convergence (complex-step reference runs)
+        self._dense_scratch = None  # buffers of _dense_newton, allocated on first use
 
     # ---- building blocks
     def _choose_scale(self) -> float:
@@ -297,10 +298,12 @@ class Stepper:
         five calls per iteration of the step-by-step loop."""
         s = self.settings
         n, dt = self.n, self.dtype
-        R = np.empty(n, dtype=dt)
+        if self._dense_scratch is None:  # the residual (read on failure) and (|R|, err) rows
+            self._dense_scratch = (np.empty(n, dtype=dt), np.zeros((s.max_iter, 2)))
+        R, hist = self._dense_scratch
+        # fresh factors every step: a sensitivity run keeps them (sensitivity_direct)
         LU = np.empty((n, n), dtype=dt)
         piv = np.empty(n, dtype=np.int64)
-        hist = np.zeros((s.max_iter, 2))
         z, it, status, bad = dense_newton(
             self.S, z, qh, vh, coef.bh2, coef.gh, self.scale, coef.arrays[3], self.b0,
             self.b1, *ta, self.n_dof, R_hist, self.system.indices, self.system.indptr,
