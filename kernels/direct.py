@@ -20,7 +20,7 @@ Then one solve with the primal's last factorization, iterative refinement agains
 converged matrix (:func:`csc_residual`, the matrix comes from :func:`state_loads`), and
 :func:`update_sensitivities`, the Newmark update of the histories. A run forms the explicit
 parts of a block of steps in one call (:func:`explicit_block`); with dense factors the whole
-recursion over the block is one call as well (:func:`dense_recursion`), with SuperLU's the
+recursion over the block is one call as well (:func:`dense_recursion`), with sparse ones the
 solves are made from Python.
 
 The step coefficients travel as two small arrays: ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)``
@@ -241,7 +241,7 @@ def dense_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale
                     LU, piv, refine, n_refine, r, x, refined):
     """The sensitivity recursion over a block of steps in one call, for step matrices small
     enough for the dense LU (``morphlab.factorization.DENSE_MAX``). Per step ``j``, as the
-    SuperLU path does from Python (``morphlab.sensitivity_direct._DirectPass.flush``): the
+    sparse path does from Python (``morphlab.sensitivity_direct._DirectPass.flush``): the
     state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the explicit part;
     the solve with the step's factors ``LU[j], piv[j]`` ((K, n, n), (K, n);
     ``morphlab.kernels.dense``); ``n_refine`` refinement sweeps against the exact converged

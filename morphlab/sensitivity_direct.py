@@ -260,14 +260,12 @@ BLOCK_BYTES = 64 * 2**20
 
 
 def _lu_bytes(lu) -> int:
-    """Approximate memory of a factorization from :mod:`morphlab.factorization`. SuperLU's:
-    ``24 nnz(L+U) + 40 kB``, fitted to the resident memory of 301 kept factorizations of the
-    morphing skin (measured 0.083 MiB each with 30 elements, 0.41 MiB with 300)."""
-    inner = getattr(lu, "lu", None)
-    if inner is not None and hasattr(inner, "nnz"):
-        return 24 * int(inner.nnz) + 40_000
-    arrays = [getattr(lu, k, None) for k in ("LU", "piv")]
-    return sum(a.nbytes for a in arrays if isinstance(a, np.ndarray)) or 1
+    """Approximate memory of a factorization from :mod:`morphlab.factorization`: its arrays
+    (a sparse LU shares its patterns with every factor of its row order; SuperLU's by its
+    ``nbytes`` estimate) and ~0.5 kB for the Python objects and array headers."""
+    if isinstance(lu, DenseLU):
+        return lu.LU.nbytes + lu.piv.nbytes + 500
+    return lu.nbytes + 500
 
 
 class _DirectPass:
@@ -297,7 +295,7 @@ class _DirectPass:
         self.J = np.zeros(nnz)
         self.r = np.zeros((n, n_x))
         self.pending: list = []  # (time index, state, factorization, last Newton correction)
-        self.capacity = 0
+        self.pending_bytes = 0  # memory kept by the pending steps (estimate)
         self.first_old = None  # the state before the first pending step
         self.info = None  # the StepInfo of the first pending step (coefficients, tables)
         self.stats = {"refinement_residual": [], "refined_steps": 0, "sensitivity_time": 0.0,
@@ -318,10 +316,8 @@ class _DirectPass:
                 self.first_old = (p.q, p.v, p.a, p.lam)
         last = info.newton_history[-1][1] if info.newton_history else 0.0
         self.pending.append((info.n, info.state, info.lu, last))
-        if not self.capacity:
-            per_step = _lu_bytes(info.lu) + 8 * self.sys0.n * (self.r.shape[1] + 4)
-            self.capacity = max(1, self.block_bytes // per_step)
-        if len(self.pending) >= self.capacity or info.n == self.n_steps:
+        self.pending_bytes += _lu_bytes(info.lu) + 8 * self.sys0.n * (self.r.shape[1] + 4)
+        if self.pending_bytes >= self.block_bytes or info.n == self.n_steps:
             self.flush()
         self.stats["sensitivity_time"] += _time.perf_counter() - t0
 
@@ -356,7 +352,7 @@ class _DirectPass:
             dense_recursion(stp.S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, *coefs,
                             *hist, pc, upd, self.mats, self.zmat, self.J, E, LU, piv, refine,
                             self.refine, self.r, np.empty_like(self.r), refined)
-        else:  # SuperLU: the same sequence, the solves from Python
+        else:  # sparse LU: the same sequence, the solves from Python
             for j, (k, _st, lu, _last) in enumerate(steps):
                 rhs = E[j]
                 state_loads(stp.S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j],
@@ -373,6 +369,7 @@ class _DirectPass:
         self.stats["refined_steps"] += int(refine.sum())
         self.stats["refinement_residual"] += refined[refine].tolist()
         self.pending = []
+        self.pending_bytes = 0
         self.stats["blocks"] += 1
 
 

@@ -218,25 +218,32 @@ def test_stress_and_node_position_derivatives_match_complex_step(runs):
 
 # ---------------------------------------------------------------- factorizations and refinement
 def _count_factorizations(monkeypatch):
-    """Count every call of a sparse factorization or sparse direct solve, wherever bound
-    (scipy itself and the names imported into the morphlab modules, including the SuperLU
-    entry point the solver calls directly, ``morphlab.factorization._gstrf``, and the dense LU of
-    small step matrices, ``morphlab.factorization.lu_factor``). The full Newton loop on a dense
-    LU factors inside one compiled call (``morphlab.solver.dense_newton``), where no counter
-    can see it, so the tests below take the SuperLU path (``DENSE_MAX = 0``)."""
+    """Count every numeric factorization and sparse direct solve, wherever bound (scipy itself
+    and the names imported into the morphlab modules): SuperLU (``splu``, and the entry point
+    the solver calls directly, ``morphlab.factorization._gstrf``), the compiled sparse
+    refactorization ``morphlab.factorization.refactor`` (a call that returns -1: one that
+    reports a failed pivot leaves no factors), the dense LU of small step matrices
+    ``morphlab.factorization.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
+    The full Newton loop on a dense LU factors inside one compiled call
+    (``morphlab.solver.dense_newton``), where no counter can see it, so the tests below take
+    the sparse path (``DENSE_MAX = 0``)."""
     calls = {"n": 0}
 
-    def wrap(fn):
+    def wrap(fn, done=lambda out: True):
         def counted(*args, **kwargs):
-            calls["n"] += 1
-            return fn(*args, **kwargs)
+            out = fn(*args, **kwargs)
+            calls["n"] += bool(done(out))
+            return out
         return counted
 
     for mod in (scipy.sparse.linalg, morphlab.factorization, morphlab.solver,
                 morphlab.sensitivity):
-        for name in ("splu", "spilu", "spsolve", "factorized", "_gstrf", "lu_factor"):
-            if getattr(mod, name, None) is not None:
-                monkeypatch.setattr(mod, name, wrap(getattr(mod, name)))
+        for name in ("splu", "_gstrf", "refactor", "lu_factor", "spsolve", "factorized",
+                     "spilu"):
+            fn = getattr(mod, name, None)
+            if fn is not None:
+                done = (lambda bad: bad < 0) if name == "refactor" else (lambda out: True)
+                monkeypatch.setattr(mod, name, wrap(fn, done))
     return calls
 
 
@@ -283,7 +290,7 @@ def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme)
     """A direct run keeps the converged steps and solves their sensitivities in blocks
     (``sensitivity_direct.BLOCK_BYTES``): the same kernels on the same data, called at other
     times, so one step per block, a few steps per block and the whole run in one block must
-    give the same numbers bit for bit. For the SuperLU path as well (DENSE_MAX = 0), whose
+    give the same numbers bit for bit. For the sparse path as well (DENSE_MAX = 0), whose
     recursion runs from Python instead of in one compiled call, and for the paper's weighting,
     whose residual also reads the state at the start of each step (for a block's first step
     that state belongs to the previous block)."""
@@ -291,9 +298,10 @@ def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme)
 
     build, p0, resp = responses_for(name)
     default = sd.BLOCK_BYTES
-    # (DENSE_MAX, a budget of a few steps: dense factors ~7-17 kB per step here, SuperLU's
-    # ~50-60 kB by sensitivity_direct._lu_bytes)
-    for dense_max, few in ((morphlab.factorization.DENSE_MAX, 60_000), (0, 200_000)):
+    # (DENSE_MAX, a budget of a few steps: ~7-17 kB per step here with dense factors; on the
+    # sparse path ~4-7 kB with refactored ones, ~45 kB with SuperLU's where it chose a new
+    # row order, by sensitivity_direct._lu_bytes)
+    for dense_max, few in ((morphlab.factorization.DENSE_MAX, 60_000), (0, 100_000)):
         monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", dense_max)
         runs = []
         for block_bytes in (default, 1, few):

@@ -17,7 +17,7 @@ from morphlab import factorization
 @pytest.fixture(autouse=True, params=["dense", "superlu"])
 def newton_path(request, monkeypatch):
     """Every test twice: small step matrices run the whole Newton loop in one compiled call
-    (``Stepper._dense_newton``), larger ones iterate from Python with SuperLU
+    (``Stepper._dense_newton``), larger ones iterate from Python with the sparse LU
     (``Stepper._iteration``); both must fail the same way. ``DENSE_MAX = 0`` forces the
     second on these small models."""
     if request.param == "superlu":
