@@ -20,8 +20,8 @@ Then one solve with the primal's last factorization, iterative refinement agains
 converged matrix (:func:`csc_residual`, the matrix comes from :func:`state_loads`), and
 :func:`update_sensitivities`, the Newmark update of the histories. A run forms the explicit
 parts of a block of steps in one call (:func:`explicit_block`); with dense factors the whole
-recursion over the block is one call as well (:func:`dense_recursion`), with sparse ones the
-solves are made from Python.
+recursion over the block is one call as well (:func:`block_recursion`, for dense factors and
+for sparse ones of one row order); for SuperLU's factors the solves are made from Python.
 
 The step coefficients travel as two small arrays: ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)``
 and ``upd = (ga, gan, ggn)`` (``morphlab.integrator.StepCoefficients``), so that::
@@ -39,6 +39,7 @@ from numba import njit
 
 from .assemble import add_residual_parts, fill_matrix
 from .dense import lu_solve
+from .sparse_lu import solve as sparse_solve
 
 # positions in ``S`` of the floating-point arrays that a design variable can change; a
 # sensitivity run stacks them over the design variables (leading axis n_x)
@@ -236,28 +237,42 @@ def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1
 
 
 @njit(cache=True)
-def dense_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale, b0, b1, bh2,
+def _solve_step(j, b, work, LU, piv, Lx, Ux, Ud, pattern):
+    """Solve in place with step ``j``'s factors: dense ``LU[j], piv[j]`` if ``LU`` holds any,
+    else sparse ``Lx[j], Ux[j], Ud[j]`` with the shared ``pattern = (Lp, Li, Up, Ui, row_from,
+    row_scale, col_to, col_scale)`` (``morphlab.kernels.sparse_lu``; ``work``: (n, n_x))."""
+    if LU.shape[0] > 0:
+        lu_solve(LU[j], piv[j], b)
+    else:
+        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
+        sparse_solve(Lp, Li, Lx[j], Up, Ui, Ux[j], Ud[j], row_from, row_scale, col_to,
+                     col_scale, b, b, work)
+
+
+@njit(cache=True)
+def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale, b0, b1, bh2,
                     gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, pc, upd, mats, Z, J, E,
-                    LU, piv, refine, n_refine, r, x, refined):
-    """The sensitivity recursion over a block of steps in one call, for step matrices small
-    enough for the dense LU (``morphlab.factorization.DENSE_MAX``). Per step ``j``, as the
-    sparse path does from Python (``morphlab.sensitivity_direct._DirectPass.flush``): the
+                    LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, r, x, work, refined):
+    """The sensitivity recursion over a block of steps in one call, for steps whose factors are
+    all dense (``LU``, ``piv``: (K, n, n), (K, n); ``morphlab.kernels.dense``) or all sparse
+    with one row order (``Lx``, ``Ux``, ``Ud``: (K, ...) and their ``pattern``, see
+    :func:`_solve_step`; the other kind's arrays empty). Per step ``j``, as
+    ``morphlab.sensitivity_direct._DirectPass.flush`` does from Python for other factors: the
     state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the explicit part;
-    the solve with the step's factors ``LU[j], piv[j]`` ((K, n, n), (K, n);
-    ``morphlab.kernels.dense``); ``n_refine`` refinement sweeps against the exact converged
-    matrix where ``refine[j]``, writing the relative residual to ``refined[j]``; the Newmark
-    update (:func:`update_sensitivities`). ``r``, ``x``: (n, n_x) scratch."""
+    the solve with the step's factors; ``n_refine`` refinement sweeps against the exact
+    converged matrix where ``refine[j]``, writing the relative residual to ``refined[j]``; the
+    Newmark update (:func:`update_sensitivities`). ``r``, ``x``, ``work``: (n, n_x) scratch."""
     for j in range(E.shape[0]):
         rhs = E[j]
         state_loads(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j], V[j],
                     A[j], L[j], w_old, F, k_new[j], scale, b0, b1, bh2, gh, indices, indptr,
                     n_dof, DQ, DV, DA, DG, DLAM, k_old[j], pc, mats, Z, J, rhs)
         x[:, :] = rhs
-        lu_solve(LU[j], piv[j], x)
+        _solve_step(j, x, work, LU, piv, Lx, Ux, Ud, pattern)
         if refine[j]:
             for _ in range(n_refine):
                 csc_residual(J, indices, indptr, x, rhs, r)
-                lu_solve(LU[j], piv[j], r)
+                _solve_step(j, r, work, LU, piv, Lx, Ux, Ud, pattern)
                 x += r
             rr, bb = csc_residual(J, indices, indptr, x, rhs, r)
             refined[j] = rr / max(bb, 1e-300)

@@ -14,16 +14,17 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Mapping
+from itertools import groupby
 
 import numpy as np
 
 from .compile import System, compile_model
 from .errors import SensitivityError
-from .factorization import DenseLU
+from .factorization import DenseLU, SparseLU
 from .kernels.direct import (
     PERTURBED,
+    block_recursion,
     csc_residual,
-    dense_recursion,
     explicit_block,
     state_loads,
     update_sensitivities,
@@ -268,6 +269,37 @@ def _lu_bytes(lu) -> int:
     return lu.nbytes + 500
 
 
+def _factor_kind(lu):
+    """What a block of factors can be solved with in one compiled call: ``"dense"``, the row
+    order (:class:`morphlab.factorization._Pivots`) all sparse factors of a run share, or None
+    (SuperLU's own factors: solved from Python)."""
+    if isinstance(lu, DenseLU):
+        return "dense"
+    if isinstance(lu, SparseLU):
+        return lu.pivots
+    return None
+
+
+_NO_INDEX = np.zeros(0, dtype=np.int64)
+_EMPTY_PATTERN = (_NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_INDEX, np.zeros(0), _NO_INDEX,
+                  np.zeros(0))  # the types of a sparse pattern, for dense blocks
+
+
+def _stacked_factors(lus, kind):
+    """``(LU, piv, Lx, Ux, Ud, pattern)`` of :func:`block_recursion` for factors of one kind."""
+    if kind == "dense":
+        dt = lus[0].LU.dtype
+        return (np.stack([f.LU for f in lus]), np.stack([f.piv for f in lus]),
+                np.zeros((0, 0), dt), np.zeros((0, 0), dt), np.zeros((0, 0), dt),
+                _EMPTY_PATTERN)
+    dt = lus[0].Lx.dtype
+    p = kind
+    return (np.zeros((0, 0, 0), dt), np.zeros((0, 0), dtype=np.int64),
+            np.stack([f.Lx for f in lus]), np.stack([f.Ux for f in lus]),
+            np.stack([f.Ud for f in lus]),
+            (*p.patterns, p.row_from, p.row_scale, p.col_to, p.col_scale))
+
+
 class _DirectPass:
     """The step observer of a direct run (see :func:`direct_run`).
 
@@ -346,26 +378,33 @@ class _DirectPass:
         refined = np.full(K, np.nan)
         coefs = (stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh, sys0.indices, sys0.indptr,
                  sys0.n_dof)
-        if all(isinstance(s[2], DenseLU) for s in steps):  # the whole block in one call
-            LU = np.stack([s[2].LU for s in steps])
-            piv = np.stack([s[2].piv for s in steps])
-            dense_recursion(stp.S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, *coefs,
-                            *hist, pc, upd, self.mats, self.zmat, self.J, E, LU, piv, refine,
-                            self.refine, self.r, np.empty_like(self.r), refined)
-        else:  # sparse LU: the same sequence, the solves from Python
-            for j, (k, _st, lu, _last) in enumerate(steps):
-                rhs = E[j]
-                state_loads(stp.S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j],
-                            V[j], A[j], L[j], w_old, F, k, *coefs, *hist, k_old[j], pc,
-                            self.mats, self.zmat, self.J, rhs)
-                x = _solve(lu, rhs)
-                if refine[j]:
-                    for _ in range(self.refine):
-                        csc_residual(self.J, sys0.indices, sys0.indptr, x, rhs, self.r)
-                        x = x + _solve(lu, self.r)
-                    rr, bb = csc_residual(self.J, sys0.indices, sys0.indptr, x, rhs, self.r)
-                    refined[j] = rr / max(bb, 1e-300)
-                update_sensitivities(*hist, k, x, stp.scale, sys0.n_dof, pc, upd)
+        scratch = (self.r, np.empty_like(self.r), np.empty_like(self.r))
+        j0 = 0
+        for kind, run in groupby(steps, key=lambda s: _factor_kind(s[2])):
+            j1 = j0 + len(list(run))
+            sl, sl1 = slice(j0, j1), slice(j0, j1 + 1)
+            if kind is not None:  # these steps' recursion in one compiled call
+                lus = [s[2] for s in steps[sl]]
+                arrays = _stacked_factors(lus, kind)
+                block_recursion(stp.S, Q[sl1], V[sl1], A[sl1], L[sl1], w_new, has_old, w_old,
+                                F, k_old[sl], k_new[sl], *coefs, *hist, pc, upd, self.mats,
+                                self.zmat, self.J, E[sl], *arrays, refine[sl], self.refine,
+                                *scratch, refined[sl])
+            else:  # SuperLU's factors: the same sequence, the solves from Python
+                for j in range(j0, j1):
+                    k, lu, rhs = steps[j][0], steps[j][2], E[j]
+                    state_loads(stp.S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
+                                Q[j], V[j], A[j], L[j], w_old, F, k, *coefs, *hist, k_old[j],
+                                pc, self.mats, self.zmat, self.J, rhs)
+                    x = _solve(lu, rhs)
+                    if refine[j]:
+                        for _ in range(self.refine):
+                            csc_residual(self.J, sys0.indices, sys0.indptr, x, rhs, self.r)
+                            x = x + _solve(lu, self.r)
+                        rr, bb = csc_residual(self.J, sys0.indices, sys0.indptr, x, rhs, self.r)
+                        refined[j] = rr / max(bb, 1e-300)
+                    update_sensitivities(*hist, k, x, stp.scale, sys0.n_dof, pc, upd)
+            j0 = j1
         self.stats["refined_steps"] += int(refine.sum())
         self.stats["refinement_residual"] += refined[refine].tolist()
         self.pending = []
