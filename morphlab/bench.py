@@ -271,8 +271,9 @@ def case_variables(repeats: int, quick: bool) -> dict:
 _GROUPS = (
     ("assembly kernels (residual, Newton matrix)",
      ("step_residual", "step_matrix", "add_residual", "fill_matrix", "apply_correction")),
-    ("sensitivity kernels (pseudo-loads, update, refinement residual)",
-     ("state_loads", "explicit_loads", "update_sensitivities", "csc_residual")),
+    ("sensitivity kernels (pseudo-loads, recursion, update, refinement residual)",
+     ("state_loads", "explicit_loads", "explicit_block", "block_recursion",
+      "update_sensitivities", "csc_residual")),
     ("factorization", ("gstrf", "lu_factor", "csc_to_dense", "sparse_lu.py:refactor",
                        "sparse_lu.py:symbolic")),
     ("solves", ("'solve' of 'SuperLU'", "dense.py:lu_solve", "sparse_lu.py:solve")),
