@@ -89,10 +89,12 @@ def symbolic(n, indices, indptr, perm_r):
 
 
 @njit(cache=True)
-def refactor(data, scale, indices, indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux, Ud, work, tau):
+def refactor(data, gather, scale, indices, indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux, Ud, work,
+             tau):
     """Numeric LU of ``C = P_r B`` into ``Lx``, ``Ux`` (the sizes of ``Li``, ``Ui``) and ``Ud``
-    (n,) with the patterns of :func:`symbolic`; the values of ``B`` are ``data * scale``
-    (nnz,), a scaling of the matrix the caller chose. ``work`` (n,) must be zero on entry and
+    (n,) with the patterns of :func:`symbolic`; the values of ``B`` are
+    ``data[gather] * scale`` (nnz,): read from the caller's matrix in its own order, scaled as
+    the caller chose, without a copy. ``work`` (n,) must be zero on entry and
     is zero on return. A pivot is accepted if it is nonzero and at least ``tau`` times the largest
     entry below it in its column (SuperLU's threshold rule; ``tau = 0`` accepts any nonzero
     pivot). Returns -1, or the first column whose pivot fails (the factors are then
@@ -100,7 +102,7 @@ def refactor(data, scale, indices, indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux, Ud, w
     n = Lp.shape[0] - 1
     for j in range(n):
         for p in range(indptr[j], indptr[j + 1]):
-            work[perm_r[indices[p]]] = data[p] * scale[p]
+            work[perm_r[indices[p]]] = data[gather[p]] * scale[p]
         for p in range(Up[j], Up[j + 1]):  # increasing k: x[k] is final when it is reached
             k = Ui[p]
             xk = work[k]

@@ -98,17 +98,18 @@ class StepFactorization:
             lu, self._order = self._first(data)
             return lu
         q, gather, b_indices, b_indptr, b_cols = self._order
-        b_data = data[gather]
         if self._pivots is not None:
-            lu = self._pivots.factor(b_data, SPLU_OPTIONS["diag_pivot_thresh"])
+            lu = self._pivots.factor(data, SPLU_OPTIONS["diag_pivot_thresh"])
             if lu is not None:
                 return lu
+        b_data = data[gather]
         if self._superlu is None:
             self._superlu = _NaturalFactor(b_indices, b_indptr)
         d = column_scaling(b_data, b_indptr)
         pair = d[b_indices] * d[b_cols]
         lu = self._superlu(b_data * pair)
-        self._pivots = _Pivots(lu.perm_r, d, pair, b_indices, b_indptr, q, self.dtype)
+        self._pivots = _Pivots(lu.perm_r, d, pair, gather, b_indices, b_indptr, q,
+                               self.dtype)
         self.n_orders += 1
         return _PermutedLU(lu, q, d)
 
@@ -205,9 +206,10 @@ class _Pivots:
     (nnz,) the scale of each entry), reused for later matrices: the patterns of the factors
     (:func:`morphlab.kernels.sparse_lu.symbolic`) are found when it is first reused."""
 
-    def __init__(self, perm_r, d, pair, b_indices, b_indptr, q, dtype):
+    def __init__(self, perm_r, d, pair, gather, b_indices, b_indptr, q, dtype):
         self.perm_r = np.ascontiguousarray(perm_r, dtype=np.int64)
         self.pair = pair
+        self.gather = gather  # entry p of B is entry gather[p] of A
         self.indices = b_indices
         self.indptr = b_indptr
         first = np.argsort(self.perm_r)  # row k of C = P_r B is row first[k] of B
@@ -218,9 +220,10 @@ class _Pivots:
         self.work = np.zeros(q.size, dtype=dtype)
         self.patterns = None  # (Lp, Li, Up, Ui)
 
-    def factor(self, b_data, tau):
-        """The :class:`SparseLU` of ``B`` with values ``b_data``, or None if a pivot fails the
-        threshold ``tau`` (:func:`morphlab.kernels.sparse_lu.refactor`)."""
+    def factor(self, data, tau):
+        """The :class:`SparseLU` of ``B = A[q][:, q]`` for the CSC values ``data`` of ``A``, or
+        None if a pivot fails the threshold ``tau`` (:func:`morphlab.kernels.sparse_lu.refactor`,
+        which reads ``data`` through the gather)."""
         if self.patterns is None:
             self.patterns = symbolic(self.work.size, self.indices, self.indptr, self.perm_r)
         Lp, Li, Up, Ui = self.patterns
@@ -228,8 +231,8 @@ class _Pivots:
         Lx = np.empty(Li.size, dtype=dt)
         Ux = np.empty(Ui.size, dtype=dt)
         Ud = np.empty(self.work.size, dtype=dt)
-        bad = refactor(b_data, self.pair, self.indices, self.indptr, self.perm_r, Lp, Li, Up,
-                       Ui, Lx, Ux, Ud, self.work, tau)
+        bad = refactor(data, self.gather, self.pair, self.indices, self.indptr, self.perm_r, Lp,
+                       Li, Up, Ui, Lx, Ux, Ud, self.work, tau)
         return None if bad >= 0 else SparseLU(self, Lx, Ux, Ud)
 
 

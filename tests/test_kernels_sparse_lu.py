@@ -25,6 +25,11 @@ def _saddle_point(n_q=30, n_c=8, seed=3, dtype=np.float64):
     return A
 
 
+def _as_is(nnz):
+    """``gather, scale`` of :func:`refactor` for a matrix factored in its own order, unscaled."""
+    return np.arange(nnz), np.ones(nnz)
+
+
 def _factor(A, tau):
     lu = splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.1, options=dict(SymmetricMode=True))
     pr = lu.perm_r.astype(np.int64)
@@ -35,7 +40,7 @@ def _factor(A, tau):
     Ux = np.empty(Ui.size, A.dtype)
     Ud = np.empty(n, A.dtype)
     work = np.zeros(n, A.dtype)
-    bad = refactor(A.data, np.ones(A.nnz), ind, ptr, pr, Lp, Li, Up, Ui, Lx, Ux, Ud, work, tau)
+    bad = refactor(A.data, *_as_is(A.nnz), ind, ptr, pr, Lp, Li, Up, Ui, Lx, Ux, Ud, work, tau)
     return lu, pr, (Lp, Li, Lx, Up, Ui, Ux, Ud), bad, work
 
 
@@ -73,7 +78,7 @@ def test_refactor_of_a_changed_matrix_solves_it(dtype):
     ind, ptr = A1.indices.astype(np.int64), A1.indptr.astype(np.int64)
     Lp, Li, Up, Ui = symbolic(n, ind, ptr, pr)
     Lx, Ux, Ud = (np.empty(k, dtype) for k in (Li.size, Ui.size, n))
-    assert refactor(A1.data, np.ones(A1.nnz), ind, ptr, pr, Lp, Li, Up, Ui, Lx, Ux, Ud,
+    assert refactor(A1.data, *_as_is(A1.nnz), ind, ptr, pr, Lp, Li, Up, Ui, Lx, Ux, Ud,
                     np.zeros(n, dtype), 0.1) == -1
     b = rng.normal(size=(n, 3)).astype(dtype)
     x = np.empty_like(b)
@@ -97,12 +102,12 @@ def test_a_pivot_below_the_threshold_is_reported():
     bufs = lambda: (np.empty(Li.size), np.empty(Ui.size), np.empty(3), np.zeros(3))  # noqa: E731
     small = A.copy()
     small.data[0] = 0.05  # pivot 0.05 against 1.0 below it
-    assert refactor(small.data, np.ones(4 + 3), ind, ptr, pr, Lp, Li, Up, Ui, *bufs(), 0.1) == 0
-    assert refactor(small.data, np.ones(4 + 3), ind, ptr, pr, Lp, Li, Up, Ui, *bufs(), 0.0) == -1
+    assert refactor(small.data, *_as_is(7), ind, ptr, pr, Lp, Li, Up, Ui, *bufs(), 0.1) == 0
+    assert refactor(small.data, *_as_is(7), ind, ptr, pr, Lp, Li, Up, Ui, *bufs(), 0.0) == -1
     zero = A.copy()
     zero.data[0] = 0.0
     work = np.zeros(3)
-    assert refactor(zero.data, np.ones(7), ind, ptr, pr, Lp, Li, Up, Ui, *bufs()[:3], work,
+    assert refactor(zero.data, *_as_is(7), ind, ptr, pr, Lp, Li, Up, Ui, *bufs()[:3], work,
                     0.0) == 0
     assert not np.any(work)  # clean after a failure too
 
