@@ -160,6 +160,11 @@ class DenseLU:
         self.LU = LU
         self.piv = piv
 
+    @property
+    def nbytes(self) -> int:
+        """Memory of the factors."""
+        return self.LU.nbytes + self.piv.nbytes
+
     def solve(self, b):
         dt = np.result_type(self.LU.dtype, b.dtype)
         x = np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1)

@@ -262,10 +262,8 @@ BLOCK_BYTES = 64 * 2**20
 
 def _lu_bytes(lu) -> int:
     """Approximate memory of a factorization from :mod:`morphlab.factorization`: its arrays
-    (a sparse LU shares its patterns with every factor of its row order; SuperLU's by its
-    ``nbytes`` estimate) and ~0.5 kB for the Python objects and array headers."""
-    if isinstance(lu, DenseLU):
-        return lu.LU.nbytes + lu.piv.nbytes + 500
+    (``nbytes``: a sparse LU shares its patterns with every factor of its row order; SuperLU's
+    is an estimate) and ~0.5 kB for the Python objects and array headers."""
     return lu.nbytes + 500
 
 
