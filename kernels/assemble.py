@@ -15,7 +15,6 @@ con_map_H, load_map)
 import numpy as np
 from numba import njit
 
-from .dense import csc_to_dense, lu_factor, lu_solve
 from .ffrf import body_jacobian, body_residual
 from .joints import constraint_jacobian, constraint_residual, load_jacobian, load_residual
 
@@ -121,76 +120,3 @@ def apply_correction(z, dz, n_dof):
             if m > big:
                 big = m
     return out, big, finite
-
-
-@njit(cache=True)
-def dense_newton_iteration(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof,
-                           R_hist, indices, indptr, R, data, LU, piv):
-    """One full Newton iteration of a step whose matrix is factored dense, in one call: the
-    residual :func:`step_residual` into ``R``, the matrix :func:`step_matrix` into ``data``
-    (the CSC values), scattered into ``LU`` (n, n) and factored in place with row pivots
-    ``piv`` (:mod:`morphlab.kernels.dense`), ``dz = -J^{-1} R`` and :func:`apply_correction`.
-    The same kernels, in the same order, as the step-by-step path of
-    ``morphlab.solver.Stepper`` (bitwise the same iterate), without its five calls from Python.
-
-    Returns ``(z_new, |R|², |dz|_max, finite, bad)``: ``bad`` is the first column with an
-    exactly zero pivot or -1. A non-finite ``|R|²`` stops before the matrix is formed and a
-    singular matrix before the solve; ``z_new`` is then ``z``."""
-    ssq = step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof,
-                        R_hist, R)
-    if not np.isfinite(ssq):
-        return z, ssq, 0.0, True, -1
-    step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
-    csc_to_dense(data, indices, indptr, LU)
-    bad = lu_factor(LU, piv)
-    if bad >= 0:
-        return z, ssq, 0.0, True, bad
-    dz = np.empty((R.shape[0], 1), dtype=LU.dtype)
-    for k in range(R.shape[0]):
-        dz[k, 0] = -R[k]
-    lu_solve(LU, piv, dz)
-    z_new, dz_max, finite = apply_correction(z, dz[:, 0], n_dof)
-    return z_new, ssq, dz_max, finite, bad
-
-
-@njit(cache=True)
-def dense_newton(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
-                 indices, indptr, linear, length, tol, max_iter, polish, R, data, LU, piv, hist):
-    """Full Newton–Raphson on a step with a dense-LU matrix, in one call: iterations of
-    :func:`dense_newton_iteration` until the position correction ``bh2 |dz_a|_max / length``
-    is at most ``tol`` (``linear``: the initial solve, converged after one iteration), then
-    ``polish`` more (complex-step reference runs). The loop of ``morphlab.solver.Stepper.newton``
-    (which raises the errors), with the same arithmetic.
-
-    Returns ``(z, iterations, status, bad)``: ``iterations`` up to convergence (the polish ones not
-    counted), ``hist[k] = (|R|, correction)`` of iteration ``k + 1``; ``LU, piv`` the last
-    factorization (at the iterate before the last correction). Status: 0 converged; 1
-    non-finite residual (``R`` holds it, ``z`` the iterate); 2 singular matrix (``R`` the
-    residual, ``bad`` the column without a nonzero pivot); 3 non-finite correction (``z``
-    the corrected iterate); 4 no convergence in ``max_iter`` iterations."""
-    done = 0  # the iteration that met the tolerance
-    it = 0
-    while True:
-        it += 1
-        z1, ssq, dz_max, finite, bad = dense_newton_iteration(
-            S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, indices,
-            indptr, R, data, LU, piv)
-        k = it if done == 0 else done
-        if done == 0:
-            hist[it - 1, 0] = np.sqrt(ssq)
-        if not np.isfinite(ssq):
-            return z, k, 1, -1
-        if bad >= 0:
-            return z, k, 2, bad
-        if not finite:
-            return z1, k, 3, -1
-        z = z1
-        if done == 0:
-            err = 0.0 if linear else bh2 * dz_max / length
-            hist[it - 1, 1] = err
-            if err <= tol:
-                done = it
-            elif it == max_iter:
-                return z, it, 4, -1
-        if done > 0 and it - done >= polish:
-            return z, done, 0, -1

@@ -38,8 +38,7 @@ import numpy as np
 from numba import njit
 
 from .assemble import add_residual_parts, fill_matrix
-from .dense import lu_solve
-from .sparse_lu import solve as sparse_solve
+from .newton import solve_factored
 
 # positions in ``S`` of the floating-point arrays that a design variable can change; a
 # sensitivity run stacks them over the design variables (leading axis n_x)
@@ -237,26 +236,15 @@ def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1
 
 
 @njit(cache=True)
-def _solve_step(j, b, work, LU, piv, Lx, Ux, Ud, pattern):
-    """Solve in place with step ``j``'s factors: dense ``LU[j], piv[j]`` if ``LU`` holds any,
-    else sparse ``Lx[j], Ux[j], Ud[j]`` with the shared ``pattern = (Lp, Li, Up, Ui, row_from,
-    row_scale, col_to, col_scale)`` (``morphlab.kernels.sparse_lu``; ``work``: (n, n_x))."""
-    if LU.shape[0] > 0:
-        lu_solve(LU[j], piv[j], b)
-    else:
-        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
-        sparse_solve(Lp, Li, Lx[j], Up, Ui, Ux[j], Ud[j], row_from, row_scale, col_to,
-                     col_scale, b, b, work)
-
-
-@njit(cache=True)
 def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale, b0, b1, bh2,
                     gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, pc, upd, mats, Z, J, E,
                     LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, r, x, work, refined):
     """The sensitivity recursion over a block of steps in one call, for steps whose factors are
     all dense (``LU``, ``piv``: (K, n, n), (K, n); ``morphlab.kernels.dense``) or all sparse
-    with one row order (``Lx``, ``Ux``, ``Ud``: (K, ...) and their ``pattern``, see
-    :func:`_solve_step`; the other kind's arrays empty). Per step ``j``, as
+    with one row order (``Lx``, ``Ux``, ``Ud``: (K, ...) and their ``pattern``); the other
+    kind's stacks hold K empty factors (e.g. ``LU`` (K, 0, 0)), so step ``j``'s factor is
+    :func:`morphlab.kernels.newton.solve_factored`'s ``LU[j], piv[j], Lx[j], ...``. Per step
+    ``j``, as
     ``morphlab.sensitivity_direct._DirectPass.flush`` does from Python for other factors: the
     state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the explicit part;
     the solve with the step's factors; ``n_refine`` refinement sweeps against the exact
@@ -268,11 +256,11 @@ def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale
                     A[j], L[j], w_old, F, k_new[j], scale, b0, b1, bh2, gh, indices, indptr,
                     n_dof, DQ, DV, DA, DG, DLAM, k_old[j], pc, mats, Z, J, rhs)
         x[:, :] = rhs
-        _solve_step(j, x, work, LU, piv, Lx, Ux, Ud, pattern)
+        solve_factored(x, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
         if refine[j]:
             for _ in range(n_refine):
                 csc_residual(J, indices, indptr, x, rhs, r)
-                _solve_step(j, r, work, LU, piv, Lx, Ux, Ud, pattern)
+                solve_factored(r, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
                 x += r
             rr, bb = csc_residual(J, indices, indptr, x, rhs, r)
             refined[j] = rr / max(bb, 1e-300)

@@ -62,9 +62,10 @@ class StepFactorization:
     Measured on the morphing model (123 unknowns, 1587 nonzeros, 544 step matrices of a run):
     6 us per refactorization against 68 us per SuperLU factorization (its set-up and
     supernode bookkeeping dominate at this size), solves with 5 right-hand sides 6.7 against
-    16 us; the row order was renewed 7 times in the run, and the solutions agreed with dense
-    LAPACK solves to 3e-12 relative. The first matrix of a run (the initial solve, mass and
-    constraint blocks only) is a poor source of row pivots for the step matrices: on a
+    16 us; the solutions agreed with dense LAPACK solves to 3e-12 relative. The row order
+    SuperLU chose on the second matrix served the whole run; with a 60-element skin it was
+    renewed 3 times, with 300 elements 5 times. The first matrix of a run (the initial solve,
+    mass and constraint blocks only) is a poor source of row pivots for the step matrices: on a
     3000-element skin its order fills L + U with 7.9 M nonzeros against 0.16 M for the order
     of a step matrix, hence the order is taken from the second matrix.
     """
@@ -83,6 +84,18 @@ class StepFactorization:
     def dense(self) -> bool:
         """Are the matrices factored by the dense LU (at most :data:`DENSE_MAX` unknowns)?"""
         return self.n <= DENSE_MAX
+
+    @property
+    def settled(self) -> bool:
+        """Is the next matrix factored by a compiled kernel alone: the dense LU, or the sparse
+        refactorization once SuperLU has chosen a row order (:attr:`pivots`)?"""
+        return self.dense or self._pivots is not None
+
+    @property
+    def pivots(self) -> _Pivots | None:
+        """The row order later sparse matrices are refactored with (its patterns found), or
+        None while SuperLU has chosen none."""
+        return None if self._pivots is None else self._pivots.ready()
 
     def __call__(self, data: np.ndarray):
         """Factor the matrix with CSC values ``data`` (nnz,)."""
@@ -149,6 +162,16 @@ def column_scaling(data: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     good = cmax > 0
     d[good] = 1.0 / np.sqrt(cmax[good])
     return d
+
+
+def no_sparse_arrays(dtype) -> tuple:
+    """``(order, pattern)`` of :mod:`morphlab.kernels.newton` with no entries, typed as those of
+    a sparse factor of ``dtype`` (:attr:`_Pivots.order_arrays`, :attr:`_Pivots.solve_arrays`):
+    what the compiled kernels take beside a dense factor."""
+    idx = np.zeros(0, dtype=np.int64)
+    real = np.zeros(0)
+    return ((idx, real, idx, idx, idx, np.zeros(0, dtype=dtype)),
+            (idx, idx, idx, idx, idx, real, idx, real))
 
 
 class DenseLU:
@@ -225,17 +248,38 @@ class _Pivots:
         self.work = np.zeros(q.size, dtype=dtype)
         self.patterns = None  # (Lp, Li, Up, Ui)
 
+    def ready(self) -> _Pivots:
+        """Find the patterns of the factors (once) and return self."""
+        if self.patterns is None:
+            self.patterns = symbolic(self.work.size, self.indices, self.indptr, self.perm_r)
+        return self
+
+    @property
+    def order_arrays(self) -> tuple:
+        """What the refactorization reads besides the matrix and the patterns: ``(gather, pair,
+        b_indices, b_indptr, perm_r, work)`` (``order`` of :mod:`morphlab.kernels.newton`)."""
+        return (self.gather, self.pair, self.indices, self.indptr, self.perm_r, self.work)
+
+    @property
+    def solve_arrays(self) -> tuple:
+        """What a solve reads besides the values: ``(Lp, Li, Up, Ui, row_from, row_scale, col_to,
+        col_scale)`` (``pattern`` of :mod:`morphlab.kernels.newton`)."""
+        return (*self.ready().patterns, self.row_from, self.row_scale, self.col_to,
+                self.col_scale)
+
+    def empty_factors(self) -> tuple:
+        """Fresh ``(Lx, Ux, Ud)`` for one factorization."""
+        Lp, Li, Up, Ui = self.ready().patterns
+        dt = self.work.dtype
+        return (np.empty(Li.size, dtype=dt), np.empty(Ui.size, dtype=dt),
+                np.empty(self.work.size, dtype=dt))
+
     def factor(self, data, tau):
         """The :class:`SparseLU` of ``B = A[q][:, q]`` for the CSC values ``data`` of ``A``, or
         None if a pivot fails the threshold ``tau`` (:func:`morphlab.kernels.sparse_lu.refactor`,
         which reads ``data`` through the gather)."""
-        if self.patterns is None:
-            self.patterns = symbolic(self.work.size, self.indices, self.indptr, self.perm_r)
+        Lx, Ux, Ud = self.empty_factors()
         Lp, Li, Up, Ui = self.patterns
-        dt = self.work.dtype
-        Lx = np.empty(Li.size, dtype=dt)
-        Ux = np.empty(Ui.size, dtype=dt)
-        Ud = np.empty(self.work.size, dtype=dt)
         bad = refactor(data, self.gather, self.pair, self.indices, self.indptr, self.perm_r, Lp,
                        Li, Up, Ui, Lx, Ux, Ud, self.work, tau)
         return None if bad >= 0 else SparseLU(self, Lx, Ux, Ud)

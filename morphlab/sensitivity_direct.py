@@ -20,7 +20,7 @@ import numpy as np
 
 from .compile import System, compile_model
 from .errors import SensitivityError
-from .factorization import DenseLU, SparseLU
+from .factorization import DenseLU, SparseLU, no_sparse_arrays
 from .kernels.direct import (
     PERTURBED,
     block_recursion,
@@ -278,24 +278,21 @@ def _factor_kind(lu):
     return None
 
 
-_NO_INDEX = np.zeros(0, dtype=np.int64)
-_EMPTY_PATTERN = (_NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_INDEX, np.zeros(0), _NO_INDEX,
-                  np.zeros(0))  # the types of a sparse pattern, for dense blocks
-
-
 def _stacked_factors(lus, kind):
-    """``(LU, piv, Lx, Ux, Ud, pattern)`` of :func:`block_recursion` for factors of one kind."""
+    """``(LU, piv, Lx, Ux, Ud, pattern)`` of :func:`block_recursion` for factors of one kind:
+    the stacks of that kind, and K empty factors of the other."""
+    K = len(lus)
     if kind == "dense":
         dt = lus[0].LU.dtype
-        return (np.stack([f.LU for f in lus]), np.stack([f.piv for f in lus]),
-                np.zeros((0, 0), dt), np.zeros((0, 0), dt), np.zeros((0, 0), dt),
-                _EMPTY_PATTERN)
+        empty = np.zeros((K, 0), dt)
+        return (np.stack([f.LU for f in lus]), np.stack([f.piv for f in lus]), empty, empty,
+                empty, no_sparse_arrays(dt)[1])
     dt = lus[0].Lx.dtype
     p = kind
-    return (np.zeros((0, 0, 0), dt), np.zeros((0, 0), dtype=np.int64),
+    return (np.zeros((K, 0, 0), dt), np.zeros((K, 0), dtype=np.int64),
             np.stack([f.Lx for f in lus]), np.stack([f.Ux for f in lus]),
             np.stack([f.Ud for f in lus]),
-            (*p.patterns, p.row_from, p.row_scale, p.col_to, p.col_scale))
+            p.solve_arrays)
 
 
 class _DirectPass:

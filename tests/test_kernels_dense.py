@@ -1,5 +1,5 @@
 """Dense LU of small step matrices against NumPy, and the dense and SuperLU paths of the solver
-against each other."""
+against each other (the compiled Newton loop on both: ``test_kernels_newton``)."""
 
 import numpy as np
 import pytest
@@ -71,74 +71,3 @@ def test_dense_and_superlu_paths_give_the_same_run(monkeypatch):
     sparse = ml.simulate(system, t_end=0.04, dt=1e-3)
     np.testing.assert_array_equal(dense.newton_iterations, sparse.newton_iterations)
     assert np.abs(dense.q - sparse.q).max() < 1e-10 * system.length_scale
-
-
-def test_compiled_newton_iteration_is_the_step_by_step_sequence():
-    """``dense_newton_iteration`` (one call) must give bitwise the iterate, residual, matrix
-    and factors of the kernels it chains, called one by one as the SuperLU path of the
-    solver does (same arithmetic, same order); and stop early, without touching what comes
-    after, on a non-finite residual (no matrix) and on an exactly singular matrix (no solve).
-    Taken at a converged step of the four-bar with a perturbed iterate, real and complex."""
-    from morphlab.kernels.assemble import (
-        apply_correction,
-        dense_newton_iteration,
-        step_matrix,
-        step_residual,
-    )
-
-    from morphlab.solver import Settings, Stepper, table_at, time_table
-
-    system = ml.compile_model(_four_bar())
-    res = ml.simulate(system, t_end=0.004, dt=1e-3)
-    stp = Stepper(system, Settings(t_end=0.004, dt=1e-3), scale=res.scale)
-    coef = stp.step_coef
-    n, n_dof = system.n, system.n_dof
-    for dt in (np.float64, np.complex128):
-        S = ml.solver.kernel_arrays(system, dt)
-        ta = table_at(time_table(system, res.t, dt), 3)
-        rng = np.random.default_rng(2)
-        z = np.concatenate([res.a[3], res.lam[3] / res.scale]).astype(dt)
-        z = z * (1.0 + 1e-3 * rng.standard_normal(n))
-        qh = (res.q[3] - coef.bh2 * res.a[3]).astype(dt)
-        vh = (res.v[3] - coef.gh * res.a[3]).astype(dt)
-        R_hist = np.zeros(n, dtype=dt)
-        args = (coef.bh2, coef.gh, stp.scale, coef.arrays[3], stp.b0, stp.b1)
-
-        R1, data1 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
-        LU1, piv1 = np.empty((n, n), dtype=dt), np.empty(n, dtype=np.int64)
-        z1, ssq1, big1, fin1, bad1 = dense_newton_iteration(
-            S, z, qh, vh, *args, *ta, n_dof, R_hist, system.indices, system.indptr, R1, data1,
-            LU1, piv1)
-
-        R2, data2 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
-        ssq2 = step_residual(S, z, qh, vh, *args, *ta, n_dof, R_hist, R2)
-        step_matrix(S, z, qh, vh, *args, ta[3], data2)
-        LU2, piv2 = np.empty((n, n), dtype=dt), np.empty(n, dtype=np.int64)
-        csc_to_dense(data2, system.indices, system.indptr, LU2)
-        assert lu_factor(LU2, piv2) == -1
-        dz = -R2.reshape(n, 1).copy()
-        lu_solve(LU2, piv2, dz)
-        z2, big2, fin2 = apply_correction(z, dz[:, 0], n_dof)
-
-        assert (bad1, fin1) == (-1, fin2) and fin2
-        assert ssq1 == ssq2 and big1 == big2
-        for a, b in ((R1, R2), (data1, data2), (LU1, LU2), (piv1, piv2), (z1, z2)):
-            np.testing.assert_array_equal(a, b)
-        assert np.abs(z1 - z).max() > 0.0
-
-        # a NaN in the state: the residual says so and the matrix is not formed
-        qbad = qh.copy()
-        qbad[0] = np.nan
-        data3 = np.full(system.nnz, 7.0, dtype=dt)
-        z3, ssq3, _, _, bad3 = dense_newton_iteration(
-            S, z, qbad, vh, *args, *ta, n_dof, R_hist, system.indices, system.indptr,
-            np.empty(n, dtype=dt), data3, np.empty((n, n), dtype=dt), piv1)
-        assert not np.isfinite(ssq3) and bad3 == -1 and z3 is z
-        assert np.all(data3 == 7.0)
-        # a singular matrix (all masses, stiffnesses and joints scaled to zero): a pivot column
-        S0 = tuple(x * 0 if x.dtype == dt else x for x in S)
-        z4, _, _, _, bad4 = dense_newton_iteration(
-            S0, z, qh, vh, *args, *ta, n_dof, R_hist, system.indices, system.indptr,
-            np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt), np.empty((n, n), dtype=dt),
-            piv1)
-        assert bad4 >= 0 and z4 is z

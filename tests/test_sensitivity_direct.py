@@ -224,9 +224,10 @@ def _count_factorizations(monkeypatch):
     refactorization ``morphlab.factorization.refactor`` (a call that returns -1: one that
     reports a failed pivot leaves no factors), the dense LU of small step matrices
     ``morphlab.factorization.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
-    The full Newton loop on a dense LU factors inside one compiled call
-    (``morphlab.solver.dense_newton``), where no counter can see it, so the tests below take
-    the sparse path (``DENSE_MAX = 0``)."""
+    The compiled Newton loop (``morphlab.kernels.newton``) factors where no counter can see
+    it, so the solver iterates from Python here (``Stepper.compiled = False``, the same
+    iterates) and the tests below take the sparse path (``DENSE_MAX = 0``)."""
+    monkeypatch.setattr(morphlab.solver.Stepper, "compiled", False)
     calls = {"n": 0}
 
     def wrap(fn, done=lambda out: True):

@@ -14,14 +14,17 @@ import morphlab as ml
 from morphlab import factorization
 
 
-@pytest.fixture(autouse=True, params=["dense", "superlu"])
+@pytest.fixture(autouse=True, params=["dense", "sparse", "python"])
 def newton_path(request, monkeypatch):
-    """Every test twice: small step matrices run the whole Newton loop in one compiled call
-    (``Stepper._dense_newton``), larger ones iterate from Python with the sparse LU
-    (``Stepper._iteration``); both must fail the same way. ``DENSE_MAX = 0`` forces the
-    second on these small models."""
-    if request.param == "superlu":
+    """Every test three times: the Newton loop in one compiled call
+    (``Stepper._compiled_newton``) on the dense LU of small step matrices and on the sparse
+    factorization of larger ones (``DENSE_MAX = 0`` forces it on these small models; SuperLU
+    factors the first two matrices of a run from Python), and every iteration from Python
+    (``Stepper._iteration``, ``Stepper.compiled = False``). All must fail the same way."""
+    if request.param != "dense":
         monkeypatch.setattr(factorization, "DENSE_MAX", 0)
+    if request.param == "python":
+        monkeypatch.setattr(ml.solver.Stepper, "compiled", False)
     return request.param
 
 

@@ -267,11 +267,11 @@ def test_newton_converges_quadratically_on_flexible_mechanism():
 def test_newton_order_check_detects_an_inexact_jacobian(monkeypatch):
     """The same measure on a Newton matrix scaled by 1.01 (a 1 % Jacobian error): linear
     convergence at rate ~1e-2 must fail the test above. (The matrix is perturbed in
-    ``Stepper._fill``, which the compiled dense Newton iteration bypasses, so the step-by-step
-    SuperLU path is forced.)"""
-    from morphlab import factorization, solver
+    ``Stepper._fill``, which the compiled Newton loop bypasses, so the step-by-step loop is
+    forced.)"""
+    from morphlab import solver
 
-    monkeypatch.setattr(factorization, "DENSE_MAX", 0)
+    monkeypatch.setattr(solver.Stepper, "compiled", False)
     fill = solver.Stepper._fill
 
     def off_by_one_percent(self, *args, **kw):

@@ -1,0 +1,150 @@
+"""The Newton loop in one compiled call (``morphlab.kernels.newton``) against the step-by-step
+loop of the solver, which chains the same kernels from Python: on both kinds of factor (dense
+LU of small matrices, sparse refactorization with a kept row order) the iterates must be the
+same bit for bit, and failures must stop where the step-by-step loop stops."""
+
+import numpy as np
+import pytest
+from models import flexible_mechanism
+from morphlab.kernels.assemble import apply_correction, step_matrix, step_residual
+from morphlab.kernels.newton import newton_iteration
+
+import morphlab as ml
+from morphlab import factorization
+from morphlab.solver import Settings, Stepper, table_at, time_table
+
+TAU = factorization.SPLU_OPTIONS["diag_pivot_thresh"]
+
+
+def _factor_arrays(fac, n, dt):
+    """Fresh factor arrays of the compiled kernels for the factorization ``fac``, and the
+    matching Python factorization of values ``data``."""
+    if fac.dense:
+        order, pattern = factorization.no_sparse_arrays(dt)
+        none = np.zeros(0, dtype=dt)
+        return (np.empty((n, n), dtype=dt), np.empty(n, dtype=np.int64), none, none, none,
+                order, pattern)
+    p = fac.pivots
+    return (np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64), *p.empty_factors(),
+            p.order_arrays, p.solve_arrays)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.complex128])
+@pytest.mark.parametrize("kind", ["dense", "sparse"])
+def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtype):
+    """One ``newton_iteration`` call gives bitwise the residual, matrix, factors and iterate of
+    the kernels it chains, called one by one as the solver's Python loop does (same
+    arithmetic, same order); it stops early, without touching what comes after, on a
+    non-finite residual (no matrix) and on a factorization that fails (no solve: a singular
+    dense matrix, a sparse pivot that fails the threshold). Taken at a converged step of the
+    flexible four-bar with a perturbed iterate."""
+    if kind == "sparse":
+        monkeypatch.setattr(factorization, "DENSE_MAX", 0)
+    system = ml.compile_model(flexible_mechanism())
+    settings = Settings(t_end=0.004, dt=1e-3)
+    res = ml.simulate(system, t_end=0.004, dt=1e-3)
+    stp = Stepper(system, settings, scale=res.scale)
+    coef = stp.step_coef
+    n, n_dof = system.n, system.n_dof
+    dt = np.dtype(dtype)
+    S = ml.solver.kernel_arrays(system, dt)
+    ta = table_at(time_table(system, res.t, dt), 3)
+    rng = np.random.default_rng(2)
+    z = np.concatenate([res.a[3], res.lam[3] / res.scale]).astype(dt)
+    z = z * (1.0 + 1e-3 * rng.standard_normal(n))
+    qh = (res.q[3] - coef.bh2 * res.a[3]).astype(dt)
+    vh = (res.v[3] - coef.gh * res.a[3]).astype(dt)
+    R_hist = np.zeros(n, dtype=dt)
+    args = (coef.bh2, coef.gh, stp.scale, coef.arrays[3], stp.b0, stp.b1)
+    ind, ptr = system.indices, system.indptr
+
+    fac = factorization.StepFactorization(ind, ptr, n, dt)
+    data0 = np.empty(system.nnz, dtype=dt)
+    step_matrix(S, z, qh, vh, *args, ta[3], data0)
+    while not fac.settled:  # SuperLU chooses the orders on the first two matrices
+        fac(data0)
+    assert fac.dense == (kind == "dense")
+
+    R1, data1 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
+    F1 = _factor_arrays(fac, n, dt)
+    z1, ssq1, big1, fin1, bad1 = newton_iteration(
+        S, z, qh, vh, *args, *ta, n_dof, R_hist, ind, ptr, R1, data1, *F1, TAU)
+
+    R2, data2 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
+    ssq2 = step_residual(S, z, qh, vh, *args, *ta, n_dof, R_hist, R2)
+    step_matrix(S, z, qh, vh, *args, ta[3], data2)
+    lu = fac(data2)
+    z2, big2, fin2 = apply_correction(z, lu.solve(-R2), n_dof)
+    factors = (lu.LU, lu.piv) if kind == "dense" else (lu.Lx, lu.Ux, lu.Ud)
+    mine = (F1[0], F1[1]) if kind == "dense" else F1[2:5]
+    assert isinstance(lu, factorization.DenseLU if kind == "dense" else factorization.SparseLU)
+
+    assert (bad1, fin1) == (-1, fin2) and fin2
+    assert ssq1 == ssq2 and big1 == big2
+    for a, b in ((R1, R2), (data1, data2), *zip(mine, factors), (z1, z2)):
+        np.testing.assert_array_equal(a, b)
+    assert np.abs(z1 - z).max() > 0.0
+
+    # a NaN in the state: the residual says so and the matrix is not formed
+    qbad = qh.copy()
+    qbad[0] = np.nan
+    data3 = np.full(system.nnz, 7.0, dtype=dt)
+    z3, ssq3, _, _, bad3 = newton_iteration(
+        S, z, qbad, vh, *args, *ta, n_dof, R_hist, ind, ptr, np.empty(n, dtype=dt), data3,
+        *_factor_arrays(fac, n, dt), TAU)
+    assert not np.isfinite(ssq3) and bad3 == -1 and z3 is z
+    assert np.all(data3 == 7.0)
+    # all masses, stiffnesses and joints scaled to zero: the factorization reports a column
+    S0 = tuple(x * 0 if x.dtype == dt else x for x in S)
+    z4, _, _, _, bad4 = newton_iteration(
+        S0, z, qh, vh, *args, *ta, n_dof, R_hist, ind, ptr, np.empty(n, dtype=dt),
+        np.empty(system.nnz, dtype=dt), *_factor_arrays(fac, n, dt), TAU)
+    assert bad4 >= 0 and z4 is z
+    if kind == "sparse":  # the refactorization's work column is left clean for the next one
+        assert not np.any(fac.pivots.work)
+
+
+def _runs(monkeypatch, system, **kw):
+    """The same run with the compiled loop and with every iteration in Python; the number of
+    row orders SuperLU chose in each."""
+    orders = []
+    choose = factorization._NaturalFactor.__call__
+
+    def counted(self, data):
+        orders[-1] += 1
+        return choose(self, data)
+
+    monkeypatch.setattr(factorization._NaturalFactor, "__call__", counted)
+    out = []
+    for compiled in (True, False):
+        monkeypatch.setattr(Stepper, "compiled", compiled)
+        orders.append(0)
+        out.append(ml.simulate(system, **kw))
+    return out, orders
+
+
+def test_compiled_loop_gives_the_run_of_the_python_loop(monkeypatch):
+    """The morphing leading edge with a 60-element skin (213 unknowns: sparse): with the
+    compiled loop and with every iteration from Python the run is the same bit for bit, with
+    as many iterations and factorizations. SuperLU renews the row order during this run (a
+    pivot fails the threshold inside the compiled loop, which hands the iteration back to
+    Python): 4 orders, the same in both (the default 30-element skin keeps its first)."""
+    from morphlab import morphing as mo
+
+    system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=60))
+    (fast, slow), orders = _runs(monkeypatch, system, **mo.SETTINGS)
+    assert orders[0] == orders[1] >= 2  # the order of the second matrix, then renewals
+    for name in ("q", "v", "a", "lam", "newton_iterations"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+    assert fast.n_factorizations == slow.n_factorizations
+
+
+def test_compiled_dense_loop_gives_the_run_of_the_python_loop(monkeypatch):
+    """The same for a dense model (the flexible four-bar, 42 unknowns)."""
+    system = ml.compile_model(flexible_mechanism())
+    assert factorization.StepFactorization(system.indices, system.indptr, system.n,
+                                           float).dense
+    (fast, slow), _ = _runs(monkeypatch, system, t_end=0.02, dt=1e-3)
+    for name in ("q", "lam", "newton_iterations"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+    assert fast.n_factorizations == slow.n_factorizations
