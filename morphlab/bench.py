@@ -312,6 +312,109 @@ def case_profile(repeats: int, quick: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
+def _per_call_us(fn, repeats: int, calls: int = 300) -> dict:
+    """Microseconds per call of ``fn``: ``calls`` calls in a row, ``repeats`` times (median,
+    min, max of the per-call means)."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        times.append(1e6 * (time.perf_counter() - t0) / calls)
+    return _stats(times)
+
+
+def case_floor(repeats: int, quick: bool) -> dict:
+    """The least a direct run can cost against a primal run on the morphing model, from the
+    compiled kernels of one converged step (the middle one) timed alone.
+
+    A primal step makes ``iterations`` Newton iterations, each a residual, a Newton matrix, its
+    factorization and a one-column solve. A sensitivity step needs at least the matrices of
+    the state part at the converged point (:func:`morphlab.kernels.direct.split_matrices`),
+    the partial derivatives of the 5 variables (``explicit_loads``) and one 5-column solve;
+    the products with the histories, the Newmark update and the refinement are left out.
+    ``floor = 1 + sensitivity / primal`` is direct/primal with no Python, set-up or responses
+    on either side and nothing but those kernels in the sensitivity step; below it,
+    ``one_matrix_and_solve_over_primal`` counts one matrix and the solve only (free partial
+    derivatives, a state part from a single fill). Each figure is a
+    call from Python (the dispatch of a kernel that takes the system tuple costs ~3 us of it;
+    the compiled loops pay it once per step or block)."""
+    from .compile import compile_model
+    from .kernels.assemble import step_matrix, step_residual
+    from .kernels.direct import explicit_loads, split_matrices
+    from .kernels.newton import factor_matrix, solve_factored
+    from .sensitivity_direct import CS_STEP, _pseudo_load_data
+    from .solver import Settings
+    from .timeloop import integrate
+
+    mo = _morphing()
+    settings = Settings(**mo.SETTINGS)
+    p0 = dict(mo.DEFAULTS)
+    names = list(p0)
+    sys0 = compile_model(mo.build(p0))
+    perturbed = [compile_model(mo.build({**p0, v: p0[v] + 1j * CS_STEP}), dtype=np.complex128,
+                               like=sys0) for v in names]
+    data = _pseudo_load_data(sys0, settings, names, perturbed, mo.build, p0, None, "direct")
+    k = settings.n_steps // 2
+    seen = {}
+
+    def keep(info):
+        if info.n == k:
+            seen["info"] = info
+
+    res = integrate(sys0, settings, observer=keep)
+    info = seen["info"]
+    stp, coef, st, old = info.stepper, info.coef, info.state, info.prev
+    ta = stp.time_arrays(st.t)
+    n, nnz, n_dof = sys0.n, sys0.nnz, sys0.n_dof
+    R, R_hist = np.empty(n), np.zeros(n)
+    common = (stp.S, info.z, info.qh, info.vh, coef.bh2, coef.gh, stp.scale, coef.arrays[3],
+              stp.b0, stp.b1)
+    lu = info.lu
+    pivots = lu.pivots  # the morphing model is sparse (123 unknowns): a refactorization
+    order, pattern = pivots.order_arrays, pivots.solve_arrays
+    no_lu, no_piv = np.zeros((0, 0)), np.zeros(0, dtype=np.int64)
+    Lx, Ux, Ud = pivots.empty_factors()
+    tau = 0.1
+    b1, b5 = np.ones((n, 1)), np.ones((n, 5))
+    w1, w5 = np.empty_like(b1), np.empty_like(b5)
+    mats = np.zeros((3, nnz))
+    Z = np.zeros(nnz, dtype=np.complex128)
+    rhs = np.zeros((n, len(names)))
+    lam = st.lam / stp.scale
+    w = coef.arrays[3]
+    kernels = {
+        "residual": lambda: step_residual(*common, *ta, n_dof, R_hist, R),
+        "matrix": lambda: step_matrix(*common, ta[3], stp.data),
+        "factorization": lambda: factor_matrix(stp.data, sys0.indices, sys0.indptr, no_lu,
+                                               no_piv, Lx, Ux, Ud, order, pattern, tau),
+        "solve, 1 column": lambda: solve_factored(b1, w1, no_lu, no_piv, Lx, Ux, Ud, pattern),
+        "solve, 5 columns": lambda: solve_factored(b5, w5, no_lu, no_piv, Lx, Ux, Ud, pattern),
+        "split matrices (state part)": lambda: split_matrices(
+            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta[3], *mats, Z),
+        "partial derivatives, 5 variables": lambda: explicit_loads(
+            data["S_nom"], data["P"], data["parts"], st.q, st.v, st.a, st.lam, w, False, old.q,
+            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data["TAB"], data["tab0"],
+            k - 1, k, n_dof, data["pert"], np.zeros((2, n), dtype=np.complex128), rhs),
+    }
+    us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}
+    med = {name: v["median"] for name, v in us.items()}
+    iters = float(np.mean(res.newton_iterations[1:]))
+    primal = iters * (med["residual"] + med["matrix"] + med["factorization"]
+                      + med["solve, 1 column"])
+    sens = (med["split matrices (state part)"] + med["partial derivatives, 5 variables"]
+            + med["solve, 5 columns"])
+    # any sensitivity step forms at least one matrix at the converged point (the state part
+    # reads the derivatives there, which no Newton iteration formed) and solves the n_x columns
+    least = med["matrix"] + med["solve, 5 columns"]
+    return {"kernels_us": us, "newton_iterations_per_step": iters,
+            "primal_step_us": primal, "sensitivity_step_us": sens,
+            "floor_direct_over_primal": 1.0 + sens / primal,
+            "one_matrix_and_solve_over_primal": 1.0 + least / primal}
+
+
+# ---------------------------------------------------------------------------------------------
 def case_exudyn(repeats: int, quick: bool) -> dict:
     try:
         import exudyn  # noqa: F401
@@ -323,7 +426,8 @@ def case_exudyn(repeats: int, quick: bool) -> dict:
 
 
 CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
-         "variables": case_variables, "profile": case_profile, "exudyn": case_exudyn}
+         "variables": case_variables, "profile": case_profile, "floor": case_floor,
+         "exudyn": case_exudyn}
 
 
 def main(argv=None) -> int:

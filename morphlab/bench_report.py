@@ -83,6 +83,20 @@ def table(results: dict) -> str:
         for k, sec in sorted(p["seconds"].items(), key=lambda kv: -kv[1]):
             lines.append(f"| {k} | {sec:.4f} | {100 * p['fractions'][k]:.1f} % |")
         lines.append("")
+    f = results["cases"].get("floor")
+    if f:
+        lines += ["### The kernel floor of direct / primal (morphing model, one step)", "",
+                  "| kernel | µs per call (median) | min | max |", "|---|---|---|---|"]
+        for k, v in f["kernels_us"].items():
+            lines.append(f"| {k} | {v['median']:.1f} | {v['min']:.1f} | {v['max']:.1f} |")
+        lines += ["", f"primal step: {f['newton_iterations_per_step']:.2f} iterations x "
+                      f"(residual + matrix + factorization + 1-column solve) = "
+                      f"{f['primal_step_us']:.1f} µs; sensitivity step at least split "
+                      f"matrices + partial derivatives + 5-column solve = "
+                      f"{f['sensitivity_step_us']:.1f} µs; floor of direct / primal = "
+                      f"{f['floor_direct_over_primal']:.2f}; with one matrix and the solve "
+                      "alone (free partial derivatives, the state part from a single fill): "
+                      f"{f['one_matrix_and_solve_over_primal']:.2f}", ""]
     x = results["cases"].get("exudyn")
     if x and "rows" in x:
         lines += ["### Side by side with Exudyn (flexible pendulum, same elements and steps)", "",
