@@ -14,6 +14,8 @@ shared and noisy). Cases:
 ``variables``  1, 5, 20, 50 design variables (skin thickness per group of elements):
                direct / primal against n_x, beside the finite-difference cost n_x + 1.
 ``profile``    where the time of the morphing direct run goes (cProfile, grouped).
+``floor``      the compiled kernels of one morphing step timed alone, and the least
+               direct / primal they allow (no Python, set-up or responses counted).
 ``exudyn``     the same flexible pendulum in Exudyn (optional extra ``bench``), if installed.
 
 Results go to a JSON file and Markdown tables (:mod:`morphlab.bench_report`; ``BENCHMARKS.md``

@@ -60,9 +60,12 @@ class StepFactorization:
       new row order.
 
     Measured on the morphing model (123 unknowns, 1587 nonzeros, 544 step matrices of a run):
-    6 us per refactorization against 68 us per SuperLU factorization (its set-up and
-    supernode bookkeeping dominate at this size), solves with 5 right-hand sides 6.7 against
-    16 us; the solutions agreed with dense LAPACK solves to 3e-12 relative. The row order
+    14 us per refactorization (6215 multiply-adds, called from Python with its factors
+    allocated) against 44 us per SuperLU factorization in the same column order (its set-up
+    and supernode bookkeeping dominate at this size; 68 us with its own ordering), solves with
+    5 right-hand sides 6.7 against 16 us; the solutions agreed with dense LAPACK solves to
+    3e-12 relative. (A first measurement gave 6 us per refactorization; re-measured twice
+    since, 13-14 us.) The row order
     SuperLU chose on the second matrix served the whole run; with a 60-element skin it was
     renewed 3 times, with 300 elements 5 times. The first matrix of a run (the initial solve,
     mass and constraint blocks only) is a poor source of row pivots for the step matrices: on a
