@@ -87,7 +87,10 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
     Newton residual in one call (``morphlab.solver.Stepper.residual``). Returns ``|R|²`` (NaN
     or Inf when an entry is not finite)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, n_dof)
-    R[:] = R_hist
+    # an element loop, not ``R[:] = R_hist``: Numba compiles a formatted shape-mismatch error
+    # for an array assignment, 2 s of every cold start (measured)
+    for k in range(R.shape[0]):
+        R[k] = R_hist[k]
     add_residual(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], scale, b0, b1, c, cd, cdd, F, T,
                  n_dof, R)
     ssq = 0.0

@@ -59,68 +59,54 @@ def solve_factored(b, work, LU, piv, Lx, Ux, Ud, pattern):
 
 
 @njit(cache=True)
-def newton_iteration(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
-                     indices, indptr, R, data, LU, piv, Lx, Ux, Ud, order, pattern, tau):
-    """One full Newton iteration of a step in one call: the residual
-    (:func:`morphlab.kernels.assemble.step_residual`) into ``R``, the matrix
-    (:func:`~morphlab.kernels.assemble.step_matrix`) into ``data`` (the CSC values), its
-    factorization (:func:`factor_matrix`), ``dz = -J^{-1} R`` and
-    :func:`~morphlab.kernels.assemble.apply_correction`. The kernels, in the order, of the
-    step-by-step path of ``morphlab.solver.Stepper`` (bitwise the same iterate).
-
-    Returns ``(z_new, |R|², |dz|_max, finite, bad)``: ``bad`` is the column of
-    :func:`factor_matrix`'s failure or -1. A non-finite ``|R|²`` stops before the matrix is
-    formed and a failed factorization before the solve; ``z_new`` is then ``z``."""
-    ssq = step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof,
-                        R_hist, R)
-    if not np.isfinite(ssq):
-        return z, ssq, 0.0, True, -1
-    step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
-    bad = factor_matrix(data, indices, indptr, LU, piv, Lx, Ux, Ud, order, pattern, tau)
-    if bad >= 0:
-        return z, ssq, 0.0, True, bad
-    n = R.shape[0]
-    dz = np.empty((n, 1), dtype=R.dtype)
-    for k in range(n):
-        dz[k, 0] = -R[k]
-    solve_factored(dz, np.empty_like(dz), LU, piv, Lx, Ux, Ud, pattern)
-    z_new, dz_max, finite = apply_correction(z, dz[:, 0], n_dof)
-    return z_new, ssq, dz_max, finite, bad
-
-
-@njit(cache=True)
 def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
                 indices, indptr, linear, length, tol, max_iter, polish, R, data, LU, piv, Lx,
                 Ux, Ud, order, pattern, tau, hist):
-    """Full Newton–Raphson on a step, in one call: iterations of :func:`newton_iteration` until
-    the position correction ``bh2 |dz_a|_max / length`` is at most ``tol`` (``linear``: the
-    initial solve, converged after one iteration), then ``polish`` more (complex-step reference
-    runs). The loop of ``morphlab.solver.Stepper.newton`` (which raises the errors), with the
-    same arithmetic.
+    """Full Newton–Raphson on a step, in one call: iterations of the residual
+    (:func:`morphlab.kernels.assemble.step_residual`) into ``R``, the matrix
+    (:func:`~morphlab.kernels.assemble.step_matrix`) into ``data`` (the CSC values), its
+    factorization (:func:`factor_matrix`), ``dz = -J^{-1} R`` and
+    :func:`~morphlab.kernels.assemble.apply_correction` until the position correction
+    ``bh2 |dz_a|_max / length`` is at most ``tol`` (``linear``: the initial solve, converged
+    after one iteration), then ``polish`` more (complex-step reference runs). The kernels, in
+    the order, of the step-by-step loop of ``morphlab.solver.Stepper.newton`` (which raises
+    the errors): the same arithmetic, bitwise the same iterates.
 
     Returns ``(z, iterations, status, bad)``: ``iterations`` up to convergence (the polish ones
     not counted), ``hist[k] = (|R|, correction)`` of iteration ``k + 1``; the factor arrays hold
     the last factorization (at the iterate before the last correction). Status: 0 converged; 1
-    non-finite residual (``R`` holds it, ``z`` the iterate); 2 a dense matrix is exactly singular
-    (``R`` the residual, ``bad`` the column without a nonzero pivot); 3 non-finite correction
-    (``z`` the corrected iterate); 4 no convergence in ``max_iter`` iterations; 5 a sparse pivot
-    failed the threshold (``bad`` its column, ``z`` the iterate whose matrix it was: the caller
-    lets SuperLU choose a new row order and goes on from there; with ``polish`` this can happen
-    after convergence, so the caller takes the sparse kind here only without it)."""
+    non-finite residual (``R`` holds it, ``z`` the iterate; no matrix formed); 2 a dense
+    matrix is exactly singular (``R`` the residual, ``bad`` the column without a nonzero pivot;
+    no solve); 3 non-finite correction (``z`` the corrected iterate); 4 no convergence in
+    ``max_iter`` iterations; 5 a sparse pivot failed the threshold (``bad`` its column, ``z``
+    the iterate whose matrix it was: the caller lets SuperLU choose a new row order and goes on
+    from there; with ``polish`` this can happen after convergence, so the caller takes the
+    sparse kind here only without it). ``max_iter = 1`` with ``tol = inf`` is one iteration.
+
+    (One function, not a loop around an iteration kernel: each compiled caller re-optimizes the
+    residual and matrix kernels it links, ~2 s of every cold start per level, measured.)"""
+    n = R.shape[0]
+    dz = np.empty((n, 1), dtype=R.dtype)
+    work = np.empty_like(dz)
     done = 0  # the iteration that met the tolerance
     it = 0
     while True:
         it += 1
-        z1, ssq, dz_max, finite, bad = newton_iteration(
-            S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, indices,
-            indptr, R, data, LU, piv, Lx, Ux, Ud, order, pattern, tau)
         k = it if done == 0 else done
+        ssq = step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof,
+                            R_hist, R)
         if done == 0:
             hist[it - 1, 0] = np.sqrt(ssq)
         if not np.isfinite(ssq):
             return z, k, NONFINITE_RESIDUAL, -1
+        step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
+        bad = factor_matrix(data, indices, indptr, LU, piv, Lx, Ux, Ud, order, pattern, tau)
         if bad >= 0:
             return z, k, SINGULAR if LU.shape[0] > 0 else PIVOT_REFUSED, bad
+        for r in range(n):
+            dz[r, 0] = -R[r]
+        solve_factored(dz, work, LU, piv, Lx, Ux, Ud, pattern)
+        z1, dz_max, finite = apply_correction(z, dz[:, 0], n_dof)
         if not finite:
             return z1, k, NONFINITE_CORRECTION, -1
         z = z1

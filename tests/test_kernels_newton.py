@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 from models import flexible_mechanism
 from morphlab.kernels.assemble import apply_correction, step_matrix, step_residual
-from morphlab.kernels.newton import newton_iteration
+from morphlab.kernels.newton import (
+    CONVERGED,
+    NONFINITE_RESIDUAL,
+    PIVOT_REFUSED,
+    SINGULAR,
+    newton_loop,
+)
 
 import morphlab as ml
 from morphlab import factorization
@@ -29,13 +35,24 @@ def _factor_arrays(fac, n, dt):
             p.order_arrays, p.solve_arrays)
 
 
+def _one_iteration(S, z, qh, vh, args, ta, n_dof, R_hist, system, R, data, factors, length):
+    """One iteration of the compiled loop (``max_iter = 1``, ``tol = inf``): ``(z, status,
+    bad, hist)``."""
+    hist = np.zeros((1, 2))
+    z1, it, status, bad = newton_loop(
+        S, z, qh, vh, *args, *ta, n_dof, R_hist, system.indices, system.indptr, False, length,
+        np.inf, 1, 0, R, data, *factors, TAU, hist)
+    assert it == 1
+    return z1, status, bad, hist[0]
+
+
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])
 @pytest.mark.parametrize("kind", ["dense", "sparse"])
 def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtype):
-    """One ``newton_iteration`` call gives bitwise the residual, matrix, factors and iterate of
-    the kernels it chains, called one by one as the solver's Python loop does (same
-    arithmetic, same order); it stops early, without touching what comes after, on a
-    non-finite residual (no matrix) and on a factorization that fails (no solve: a singular
+    """One iteration of ``newton_loop`` gives bitwise the residual, matrix, factors, iterate
+    and correction of the kernels it chains, called one by one as the solver's Python loop
+    does (same arithmetic, same order); it stops early, without touching what comes after, on
+    a non-finite residual (no matrix) and on a factorization that fails (no solve: a singular
     dense matrix, a sparse pivot that fails the threshold). Taken at a converged step of the
     flexible four-bar with a perturbed iterate."""
     if kind == "sparse":
@@ -45,7 +62,7 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     res = ml.simulate(system, t_end=0.004, dt=1e-3)
     stp = Stepper(system, settings, scale=res.scale)
     coef = stp.step_coef
-    n, n_dof = system.n, system.n_dof
+    n, n_dof, L = system.n, system.n_dof, system.length_scale
     dt = np.dtype(dtype)
     S = ml.solver.kernel_arrays(system, dt)
     ta = table_at(time_table(system, res.t, dt), 3)
@@ -56,19 +73,20 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     vh = (res.v[3] - coef.gh * res.a[3]).astype(dt)
     R_hist = np.zeros(n, dtype=dt)
     args = (coef.bh2, coef.gh, stp.scale, coef.arrays[3], stp.b0, stp.b1)
-    ind, ptr = system.indices, system.indptr
-
-    fac = factorization.StepFactorization(ind, ptr, n, dt)
+    fac = factorization.StepFactorization(system.indices, system.indptr, n, dt)
     data0 = np.empty(system.nnz, dtype=dt)
     step_matrix(S, z, qh, vh, *args, ta[3], data0)
     while not fac.settled:  # SuperLU chooses the orders on the first two matrices
         fac(data0)
     assert fac.dense == (kind == "dense")
 
+    def iterate(S, qh, R, data, factors):
+        return _one_iteration(S, z, qh, vh, args, ta, n_dof, R_hist, system, R, data, factors,
+                              L)
+
     R1, data1 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
     F1 = _factor_arrays(fac, n, dt)
-    z1, ssq1, big1, fin1, bad1 = newton_iteration(
-        S, z, qh, vh, *args, *ta, n_dof, R_hist, ind, ptr, R1, data1, *F1, TAU)
+    z1, status1, bad1, (r1, err1) = iterate(S, qh, R1, data1, F1)
 
     R2, data2 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
     ssq2 = step_residual(S, z, qh, vh, *args, *ta, n_dof, R_hist, R2)
@@ -79,8 +97,8 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     mine = (F1[0], F1[1]) if kind == "dense" else F1[2:5]
     assert isinstance(lu, factorization.DenseLU if kind == "dense" else factorization.SparseLU)
 
-    assert (bad1, fin1) == (-1, fin2) and fin2
-    assert ssq1 == ssq2 and big1 == big2
+    assert (status1, bad1) == (CONVERGED, -1) and fin2
+    assert r1 == np.sqrt(ssq2) and err1 == coef.bh2 * big2 / L
     for a, b in ((R1, R2), (data1, data2), *zip(mine, factors), (z1, z2)):
         np.testing.assert_array_equal(a, b)
     assert np.abs(z1 - z).max() > 0.0
@@ -89,16 +107,15 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     qbad = qh.copy()
     qbad[0] = np.nan
     data3 = np.full(system.nnz, 7.0, dtype=dt)
-    z3, ssq3, _, _, bad3 = newton_iteration(
-        S, z, qbad, vh, *args, *ta, n_dof, R_hist, ind, ptr, np.empty(n, dtype=dt), data3,
-        *_factor_arrays(fac, n, dt), TAU)
-    assert not np.isfinite(ssq3) and bad3 == -1 and z3 is z
+    z3, status3, bad3, _ = iterate(S, qbad, np.empty(n, dtype=dt), data3,
+                                   _factor_arrays(fac, n, dt))
+    assert (status3, bad3) == (NONFINITE_RESIDUAL, -1) and z3 is z
     assert np.all(data3 == 7.0)
     # all masses, stiffnesses and joints scaled to zero: the factorization reports a column
     S0 = tuple(x * 0 if x.dtype == dt else x for x in S)
-    z4, _, _, _, bad4 = newton_iteration(
-        S0, z, qh, vh, *args, *ta, n_dof, R_hist, ind, ptr, np.empty(n, dtype=dt),
-        np.empty(system.nnz, dtype=dt), *_factor_arrays(fac, n, dt), TAU)
+    z4, status4, bad4, _ = iterate(S0, qh, np.empty(n, dtype=dt),
+                                   np.empty(system.nnz, dtype=dt), _factor_arrays(fac, n, dt))
+    assert status4 == (SINGULAR if kind == "dense" else PIVOT_REFUSED)
     assert bad4 >= 0 and z4 is z
     if kind == "sparse":  # the refactorization's work column is left clean for the next one
         assert not np.any(fac.pivots.work)
