@@ -271,6 +271,8 @@ def case_variables(repeats: int, quick: bool) -> dict:
 
 # ---------------------------------------------------------------------------------------------
 _GROUPS = (
+    ("compiled Newton loops (residual, matrix, factorization, solve per iteration)",
+     ("newton_loop",)),
     ("assembly kernels (residual, Newton matrix)",
      ("step_residual", "step_matrix", "add_residual", "fill_matrix", "apply_correction")),
     ("sensitivity kernels (pseudo-loads, recursion, update, refinement residual)",
@@ -279,7 +281,9 @@ _GROUPS = (
     ("factorization", ("gstrf", "lu_factor", "csc_to_dense", "sparse_lu.py:refactor",
                        "sparse_lu.py:symbolic")),
     ("solves", ("'solve' of 'SuperLU'", "dense.py:lu_solve", "sparse_lu.py:solve")),
-    ("sparse matrix construction", ("_compressed.py", "_csc.py", "_sputils.py", "_base.py")),
+    ("sparse matrix construction", ("scipy/sparse/_compressed.py", "scipy/sparse/_csc.py",
+                                    "scipy/sparse/_sputils.py", "scipy/sparse/_base.py")),
+    ("stacking a block's kept factors and states (np.stack)", ("shape_base.py:stack",)),
     ("compile (model -> arrays)", ("compile.py",)),
     ("time tables", ("time_table", "profiles.py")),
 )
