@@ -25,11 +25,13 @@ from .kernels.dense import lu_solve as dense_lu_solve
 from .kernels.sparse_lu import refactor, symbolic
 from .kernels.sparse_lu import solve as sparse_solve
 
-# Step matrices of at most this many unknowns are factored dense (kernels.dense): SuperLU's
-# set-up costs ~20 us per factorization, more than the elimination itself for a few dozen
-# unknowns. Measured per factorization plus one solve (SuperLU / dense): 17 unknowns 24 / 4.5
-# us, 29: 30 / 9, 53: 48 / 32, 65: 58 / 57, 123 (the morphing model): 59 / 78.
-DENSE_MAX = 60
+# Step matrices of at most this many unknowns are factored dense (kernels.dense). Against
+# SuperLU (~20 us of set-up per factorization) the boundary was 60 unknowns; against the
+# compiled refactorization it is lower. Whole runs with the compiled Newton loop on either
+# kind (1000 steps, medians of 9 interleaved rounds, 2026-11-22), sparse / dense: 8 unknowns
+# 1.01, 11: 1.09, 17: 1.04-1.06 (a flexible pendulum and a rigid four-bar), 29: 0.90, 35: 1.00,
+# 53: 0.69 (direct sensitivities 0.71).
+DENSE_MAX = 24
 
 # SuperLU settings for the saddle-point matrix. The matrix is structurally nearly symmetric
 # (mass/stiffness blocks plus J and J^T), so a minimum-degree ordering of A^T + A in

@@ -299,10 +299,10 @@ def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme)
 
     build, p0, resp = responses_for(name)
     default = sd.BLOCK_BYTES
-    # (DENSE_MAX, a budget of a few steps: ~7-17 kB per step here with dense factors; on the
-    # sparse path ~4-7 kB with refactored ones, ~45 kB with SuperLU's where it chose a new
-    # row order, by sensitivity_direct._lu_bytes)
-    for dense_max, few in ((morphlab.factorization.DENSE_MAX, 60_000), (0, 100_000)):
+    # (DENSE_MAX: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
+    # per step here with dense factors; on the sparse path ~4-7 kB with refactored ones,
+    # ~45 kB with SuperLU's where it chose a new row order, by sensitivity_direct._lu_bytes)
+    for dense_max, few in ((1000, 60_000), (0, 100_000)):
         monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", dense_max)
         runs = []
         for block_bytes in (default, 1, few):

@@ -18,11 +18,11 @@ from morphlab import factorization
 def newton_path(request, monkeypatch):
     """Every test three times: the Newton loop in one compiled call
     (``Stepper._compiled_newton``) on the dense LU of small step matrices and on the sparse
-    factorization of larger ones (``DENSE_MAX = 0`` forces it on these small models; SuperLU
-    factors the first two matrices of a run from Python), and every iteration from Python
-    (``Stepper._iteration``, ``Stepper.compiled = False``). All must fail the same way."""
-    if request.param != "dense":
-        monkeypatch.setattr(factorization, "DENSE_MAX", 0)
+    factorization of larger ones (``DENSE_MAX`` forces either on these models of 20-40
+    unknowns; SuperLU factors the first two sparse matrices of a run from Python), and every
+    iteration from Python (``Stepper._iteration``, ``Stepper.compiled = False``). All must fail
+    the same way."""
+    monkeypatch.setattr(factorization, "DENSE_MAX", 1000 if request.param == "dense" else 0)
     if request.param == "python":
         monkeypatch.setattr(ml.solver.Stepper, "compiled", False)
     return request.param
