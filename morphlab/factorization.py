@@ -70,9 +70,9 @@ class StepFactorization:
     since, 13-14 us.) The row order SuperLU chose on the second matrix served the whole run;
     with a 60-element skin it was renewed 3 times, with 300 elements 5 times. The first
     matrix of a run (the initial solve, mass and constraint blocks only) is a poor source of
-    row pivots for the step matrices: on a
-    3000-element skin its order fills L + U with 7.9 M nonzeros against 0.16 M for the order
-    of a step matrix, hence the order is taken from the second matrix.
+    row pivots for the step matrices: on a 3000-element skin its order fills L + U with 7.9 M
+    nonzeros against 0.16 M for the order of a step matrix, hence the order is taken from the
+    second matrix.
     """
 
     def __init__(self, indices: np.ndarray, indptr: np.ndarray, n: int, dtype):
