@@ -171,7 +171,7 @@ def column_scaling(data: np.ndarray, indptr: np.ndarray) -> np.ndarray:
 
 def no_sparse_arrays(dtype) -> tuple:
     """``(order, pattern)`` of :mod:`morphlab.kernels.newton` with no entries, typed as those of
-    a sparse factor of ``dtype`` (:attr:`_Pivots.order_arrays`, :attr:`_Pivots.solve_arrays`):
+    a sparse factor of ``dtype`` (``_Pivots.order_arrays``, ``_Pivots.solve_arrays``):
     what the compiled kernels take beside a dense factor."""
     idx = np.zeros(0, dtype=np.int64)
     real = np.zeros(0)
@@ -251,26 +251,22 @@ class _Pivots:
         self.col_to = q  # x[q] = D y
         self.col_scale = d
         self.work = np.zeros(q.size, dtype=dtype)
-        self.patterns = None  # (Lp, Li, Up, Ui)
+        # what the refactorization reads besides the matrix and the patterns (``order`` of
+        # morphlab.kernels.newton)
+        self.order_arrays = (self.gather, self.pair, self.indices, self.indptr, self.perm_r,
+                             self.work)
+        self.patterns = None  # (Lp, Li, Up, Ui), by ready()
+        self.solve_arrays = None  # ``pattern`` of morphlab.kernels.newton, by ready()
 
     def ready(self) -> _Pivots:
-        """Find the patterns of the factors (once) and return self."""
+        """Find the patterns of the factors and the arrays a solve reads besides the values,
+        ``solve_arrays = (Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale)`` (once), and
+        return self."""
         if self.patterns is None:
             self.patterns = symbolic(self.work.size, self.indices, self.indptr, self.perm_r)
+            self.solve_arrays = (*self.patterns, self.row_from, self.row_scale, self.col_to,
+                                 self.col_scale)
         return self
-
-    @property
-    def order_arrays(self) -> tuple:
-        """What the refactorization reads besides the matrix and the patterns: ``(gather, pair,
-        b_indices, b_indptr, perm_r, work)`` (``order`` of :mod:`morphlab.kernels.newton`)."""
-        return (self.gather, self.pair, self.indices, self.indptr, self.perm_r, self.work)
-
-    @property
-    def solve_arrays(self) -> tuple:
-        """What a solve reads besides the values: ``(Lp, Li, Up, Ui, row_from, row_scale, col_to,
-        col_scale)`` (``pattern`` of :mod:`morphlab.kernels.newton`)."""
-        return (*self.ready().patterns, self.row_from, self.row_scale, self.col_to,
-                self.col_scale)
 
     def empty_factors(self) -> tuple:
         """Fresh ``(Lx, Ux, Ud)`` for one factorization."""
