@@ -244,12 +244,12 @@ def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale
     with one row order (``Lx``, ``Ux``, ``Ud``: (K, ...) and their ``pattern``); the other
     kind's stacks hold K empty factors (e.g. ``LU`` (K, 0, 0)), so step ``j``'s factor is
     :func:`morphlab.kernels.newton.solve_factored`'s ``LU[j], piv[j], Lx[j], ...``. Per step
-    ``j``, as
-    ``morphlab.sensitivity_direct._DirectPass.flush`` does from Python for other factors: the
-    state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the explicit part;
-    the solve with the step's factors; ``n_refine`` refinement sweeps against the exact
-    converged matrix where ``refine[j]``, writing the relative residual to ``refined[j]``; the
-    Newmark update (:func:`update_sensitivities`). ``r``, ``x``, ``work``: (n, n_x) scratch."""
+    ``j``, as ``morphlab.sensitivity_direct._DirectPass.flush`` does from Python for other
+    factors: the state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the
+    explicit part; the solve with the step's factors; ``n_refine`` refinement sweeps against
+    the exact converged matrix where ``refine[j]``, writing the relative residual to
+    ``refined[j]``; the Newmark update (:func:`update_sensitivities`). ``r``, ``x``,
+    ``work``: (n, n_x) scratch."""
     for j in range(E.shape[0]):
         rhs = E[j]
         state_loads(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j], V[j],
