@@ -5,7 +5,7 @@ Reproduces Gufler, Wehrle, Achleitner, Vidoni: "Flexible multibody dynamics and 
 analysis in the design of a morphing leading edge for high-performance sailplanes".
 """
 
-from . import airfoil, io, morphing, responses
+from . import io
 from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
@@ -17,17 +17,33 @@ from .errors import (
     SingularMatrixError,
     SolverError,
 )
-from .integrator import GeneralizedAlpha
-from .model import Beam, Model, RigidBody
-from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
-from .results import Result
-from .sensitivity import SensitivityResult, sensitivities
-from .solver import Settings, State
-from .statics import static
-from .timeloop import simulate
+from .model.model import Beam, Model, RigidBody
+from .model.profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
+from .results import responses
+from .results.result import Result
+from .sensitivity.api import SensitivityResult, sensitivities
+from .solve.scheme import GeneralizedAlpha
+from .solve.statics import static
+from .solve.stepper import Settings, State
+from .solve.timeloop import simulate
 from .warmup import warmup
 
 __version__ = "0.1.0"
+
+# The application (the paper's model) and the figures are loaded on first use: ``import
+# morphlab`` loads neither the morphing study nor matplotlib.
+_LAZY = {"morphing": "morphlab.morphing", "airfoil": "morphlab.morphing.airfoil",
+         "plots": "morphlab.plots"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        module = importlib.import_module(_LAZY[name])
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'morphlab' has no attribute {name!r}")
 
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
@@ -35,5 +51,6 @@ __all__ = [
     "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
     "SmoothStep", "SolverError", "State", "System", "airfoil", "compile_model", "io",
-    "morphing", "responses", "sensitivities", "simulate", "static", "warmup", "__version__",
+    "morphing", "plots", "responses", "sensitivities", "simulate", "static", "warmup",
+    "__version__",
 ]

@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             warmup()
             print("morphlab: kernels compiled")
             return 0
-        from . import morphing
+        from .morphing import leading_edge as morphing
 
         report = morphing.study(out=args.out, overrides=_overrides(args.set), quick=args.quick,
                                 figures=not args.no_figures, timing=not args.no_timing,

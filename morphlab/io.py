@@ -89,11 +89,11 @@ import zipfile
 
 import numpy as np
 
-from . import profiles as _profiles
-from .compile import BodyInfo, System
+from .compile.system import BodyInfo, System
 from .errors import FormatError
-from .model import Beam, Model, RigidBody
-from .profiles import Profile
+from .model import profiles as _profiles
+from .model.model import Beam, Model, RigidBody
+from .model.profiles import Profile
 
 FORMAT_VERSION = 1
 RESULT_FORMAT = "morphlab-result"
@@ -412,7 +412,7 @@ def save(result, path) -> None:
     -----
     The format is described in the module docstring.
     """
-    from .results import Result
+    from .results.result import Result
 
     if not isinstance(result, Result):
         raise FormatError(f"save expects a Result, got {type(result).__name__}; use "
@@ -493,8 +493,8 @@ def load(path):
         Not a morphlab result file (a :func:`save_arrays` file: use :func:`load_arrays`), or
         a newer format version.
     """
-    from .results import Result
-    from .solver import Settings
+    from .results.result import Result
+    from .solve.stepper import Settings
 
     meta, arrays = _read(path)
     if meta["format"] != RESULT_FORMAT:

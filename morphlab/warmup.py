@@ -11,8 +11,8 @@ import numpy as np
 
 
 def _tiny_build(p):
-    from .model import Model
-    from .profiles import SmoothStep
+    from .model.model import Model
+    from .model.profiles import SmoothStep
 
     m = Model(gravity=(0.0, -9.81e3), name="warmup")
     nodes = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]]) + np.array([p["x"], 0.0])
@@ -30,10 +30,10 @@ def _tiny_build(p):
 
 def warmup() -> None:
     """Compile (or load from the cache) all kernels for float64 and complex128."""
-    from .responses import point_displacement
-    from .sensitivity import sensitivities
-    from .statics import static
-    from .timeloop import simulate
+    from .results.responses import point_displacement
+    from .sensitivity.api import sensitivities
+    from .solve.statics import static
+    from .solve.timeloop import simulate
 
     p = {"x": 0.0, "E": 7.0e4}
     simulate(_tiny_build(p), t_end=0.002, dt=0.001)

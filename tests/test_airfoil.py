@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from morphlab.airfoil import (
+from morphlab.morphing.airfoil import (
     CHORD_MM,
     DEFAULT_DROOP_MM,
     THICKNESS_MM,

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from morphlab import bench
+from morphlab.bench import suite as bench
 
 
 def test_bench_cases_run_and_tabulate(tmp_path, capsys):

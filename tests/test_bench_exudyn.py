@@ -20,7 +20,7 @@ import pytest
 exudyn = pytest.importorskip("exudyn")
 
 import morphlab as ml  # noqa: E402
-from morphlab import _bench_exudyn as bx  # noqa: E402
+from morphlab.bench import exudyn as bx  # noqa: E402
 
 N_EL = 4
 T_END = 0.1  # [s]: the first bending mode (~91 Hz, 30 % damping) has decayed by then

@@ -4,7 +4,7 @@ topology (the perturbed designs of a sensitivity run) and builds its own otherwi
 import numpy as np
 
 import morphlab as ml
-from morphlab.compile import _PATTERN_KEYS
+from morphlab.compile.compile import _PATTERN_KEYS
 
 mo = ml.morphing
 

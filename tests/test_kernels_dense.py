@@ -6,7 +6,7 @@ import pytest
 from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve
 
 import morphlab as ml
-import morphlab.factorization as factorization
+import morphlab.solve.linalg as factorization
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])

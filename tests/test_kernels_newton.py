@@ -16,8 +16,9 @@ from morphlab.kernels.newton import (
 )
 
 import morphlab as ml
-from morphlab import factorization
-from morphlab.solver import Settings, Stepper, table_at, time_table
+from morphlab.solve import linalg as factorization
+from morphlab.compile.system import table_at, time_table
+from morphlab.solve.stepper import Settings, Stepper
 
 TAU = factorization.SPLU_OPTIONS["diag_pivot_thresh"]
 
@@ -63,7 +64,7 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     coef = stp.step_coef
     n, n_dof, L = system.n, system.n_dof, system.length_scale
     dt = np.dtype(dtype)
-    S = ml.solver.kernel_arrays(system, dt)
+    S = ml.solve.stepper.kernel_arrays(system, dt)
     ta = table_at(time_table(system, res.t, dt), 3)
     rng = np.random.default_rng(2)
     z = np.concatenate([res.a[3], res.lam[3] / res.scale]).astype(dt)

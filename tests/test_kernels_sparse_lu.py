@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from morphlab.kernels.sparse_lu import refactor, solve, symbolic
 from scipy.sparse.linalg import splu
 
-import morphlab.factorization as factorization
+import morphlab.solve.linalg as factorization
 
 
 def _saddle_point(n_q=30, n_c=8, seed=3, dtype=np.float64):
@@ -166,7 +166,7 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
     (the normwise backward error, what a stable LU guarantees, is ~1e-23)."""
     import morphlab as ml
     from morphlab import morphing as mo
-    from morphlab.solver import Settings, Stepper
+    from morphlab.solve.stepper import Settings, Stepper
 
     monkeypatch.setattr(factorization, "DENSE_MAX", 0)
     system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=2000))

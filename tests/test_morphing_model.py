@@ -14,7 +14,7 @@ import pytest
 
 import morphlab as ml
 from morphlab import morphing as mo
-from morphlab import morphing_design as md
+from morphlab.morphing import design as md
 
 
 @pytest.fixture(scope="module")

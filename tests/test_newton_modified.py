@@ -28,8 +28,8 @@ def test_modified_newton_on_a_closed_loop_with_gravity():
 
 
 def test_modified_newton_is_refused_for_sensitivity_runs():
-    from morphlab.solver import Settings
-    from morphlab.timeloop import integrate
+    from morphlab.solve.stepper import Settings
+    from morphlab.solve.timeloop import integrate
 
     system = ml.compile_model(flexible_mechanism())
     with pytest.raises(ml.ModelError, match="modified"):

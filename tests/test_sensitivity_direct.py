@@ -27,9 +27,11 @@ import pytest
 import scipy.sparse.linalg
 
 import morphlab as ml
-import morphlab.factorization
-import morphlab.sensitivity
-import morphlab.solver
+import morphlab.solve.linalg
+import morphlab.sensitivity.api
+import morphlab.sensitivity.direct
+import morphlab.solve.stepper
+import morphlab.solve.stepper
 
 R = ml.responses
 GRAVITY = (0.0, -9.81e3)  # mm/s^2
@@ -220,14 +222,14 @@ def test_stress_and_node_position_derivatives_match_complex_step(runs):
 def _count_factorizations(monkeypatch):
     """Count every numeric factorization and sparse direct solve, wherever bound (scipy itself
     and the names imported into the morphlab modules): SuperLU (``splu``, and the entry point
-    the solver calls directly, ``morphlab.factorization._gstrf``), the compiled sparse
-    refactorization ``morphlab.factorization.refactor`` (a call that returns -1: one that
+    the solver calls directly, ``morphlab.solve.linalg._gstrf``), the compiled sparse
+    refactorization ``morphlab.solve.linalg.refactor`` (a call that returns -1: one that
     reports a failed pivot leaves no factors), the dense LU of small step matrices
-    ``morphlab.factorization.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
+    ``morphlab.solve.linalg.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
     The compiled Newton loop (``morphlab.kernels.newton``) factors where no counter can see
     it, so the solver iterates from Python here (``Stepper.compiled = False``, the same
     iterates) and the tests below take the sparse path (``DENSE_MAX = 0``)."""
-    monkeypatch.setattr(morphlab.solver.Stepper, "compiled", False)
+    monkeypatch.setattr(morphlab.solve.stepper.Stepper, "compiled", False)
     calls = {"n": 0}
 
     def wrap(fn, done=lambda out: True):
@@ -237,8 +239,8 @@ def _count_factorizations(monkeypatch):
             return out
         return counted
 
-    for mod in (scipy.sparse.linalg, morphlab.factorization, morphlab.solver,
-                morphlab.sensitivity):
+    for mod in (scipy.sparse.linalg, morphlab.solve.linalg, morphlab.solve.stepper,
+                morphlab.sensitivity.api, morphlab.sensitivity.direct):
         for name in ("splu", "_gstrf", "refactor", "lu_factor", "spsolve", "factorized",
                      "spilu"):
             fn = getattr(mod, name, None)
@@ -251,7 +253,7 @@ def _count_factorizations(monkeypatch):
 @pytest.mark.parametrize("name", CASES)
 def test_direct_uses_only_the_primal_factorizations(monkeypatch, name):
     build, p0, resp = responses_for(name)
-    monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", 0)
+    monkeypatch.setattr(morphlab.solve.linalg, "DENSE_MAX", 0)
     calls = _count_factorizations(monkeypatch)
     plain = ml.simulate(build(p0), **RUN)
     n_plain = calls["n"]
@@ -289,21 +291,21 @@ def test_refinement_residuals_at_round_off(name):
 @pytest.mark.parametrize("name", CASES)
 def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme):
     """A direct run keeps the converged steps and solves their sensitivities in blocks
-    (``sensitivity_direct.BLOCK_BYTES``): the same kernels on the same data, called at other
+    (``morphlab.sensitivity.direct.BLOCK_BYTES``): the same kernels on the same data, called at other
     times, so one step per block, a few steps per block and the whole run in one block must
     give the same numbers bit for bit. For the sparse path as well (DENSE_MAX = 0), whose
     recursion runs from Python instead of in one compiled call, and for the paper's weighting,
     whose residual also reads the state at the start of each step (for a block's first step
     that state belongs to the previous block)."""
-    import morphlab.sensitivity_direct as sd
+    import morphlab.sensitivity.direct as sd
 
     build, p0, resp = responses_for(name)
     default = sd.BLOCK_BYTES
     # (DENSE_MAX: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
     # per step here with dense factors; on the sparse path ~4-7 kB with refactored ones,
-    # ~45 kB with SuperLU's where it chose a new row order, by sensitivity_direct._lu_bytes)
+    # ~45 kB with SuperLU's where it chose a new row order, by morphlab.sensitivity.direct._lu_bytes)
     for dense_max, few in ((1000, 60_000), (0, 100_000)):
-        monkeypatch.setattr(morphlab.factorization, "DENSE_MAX", dense_max)
+        monkeypatch.setattr(morphlab.solve.linalg, "DENSE_MAX", dense_max)
         runs = []
         for block_bytes in (default, 1, few):
             monkeypatch.setattr(sd, "BLOCK_BYTES", block_bytes)

@@ -11,7 +11,7 @@ import pytest
 from models import flexible_mechanism
 
 import morphlab as ml
-from morphlab import factorization
+from morphlab.solve import linalg as factorization
 
 
 @pytest.fixture(autouse=True, params=["dense", "sparse", "python"])
@@ -24,7 +24,7 @@ def newton_path(request, monkeypatch):
     the same way."""
     monkeypatch.setattr(factorization, "DENSE_MAX", 1000 if request.param == "dense" else 0)
     if request.param == "python":
-        monkeypatch.setattr(ml.solver.Stepper, "compiled", False)
+        monkeypatch.setattr(ml.solve.stepper.Stepper, "compiled", False)
     return request.param
 
 
@@ -210,7 +210,7 @@ def test_singular_step_matrix_names_the_time_and_the_step(newton_path):
     four-bar scaled to zero, so the equation rows of the free directions vanish) raises
     SingularMatrixError in the initial solve, at t = 0, with the residual and the dominant
     equations; the dense path names the unknown whose column has no pivot."""
-    from morphlab.solver import Settings, Stepper
+    from morphlab.solve.stepper import Settings, Stepper
 
     system = ml.compile_model(flexible_mechanism())
     stp = Stepper(system, Settings(t_end=0.01, dt=1e-3))
@@ -250,8 +250,8 @@ def test_step_reduction_rescues_a_failing_step_and_reports_it():
 
 
 def test_step_reduction_is_refused_with_an_observer():
-    from morphlab.solver import Settings
-    from morphlab.timeloop import integrate
+    from morphlab.solve.stepper import Settings
+    from morphlab.solve.timeloop import integrate
 
     system = ml.compile_model(flexible_mechanism())
     with pytest.raises(ml.ModelError, match="step reduction"):

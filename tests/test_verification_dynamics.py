@@ -269,7 +269,7 @@ def test_newton_order_check_detects_an_inexact_jacobian(monkeypatch):
     convergence at rate ~1e-2 must fail the test above. (The matrix is perturbed in
     ``Stepper._fill``, which the compiled Newton loop bypasses, so the step-by-step loop is
     forced.)"""
-    from morphlab import solver
+    from morphlab.solve import stepper as solver
 
     monkeypatch.setattr(solver.Stepper, "compiled", False)
     fill = solver.Stepper._fill

@@ -12,9 +12,9 @@ from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import FancyArrowPatch, Polygon, Rectangle
 
-from ..compile import System
+from ..compile.system import System
 from ..errors import ModelError
-from ..model import Beam, Drive, Fix, Ground, Model, Revolute, RigidBody, Weld
+from ..model.model import Beam, Drive, Fix, Ground, Model, Revolute, RigidBody, Weld
 from ._common import (
     _LINESTYLES,
     _SEQUENTIAL,

@@ -11,13 +11,13 @@ import json
 import os
 import pathlib
 import statistics
-import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .responses import distance
-from .sensitivity import sensitivities
+from ..results.responses import distance
+from ..sensitivity.api import sensitivities
+from ..studies.timing import interleaved_times, median_time
 
 
 @dataclass
@@ -34,15 +34,6 @@ class StudyResult:
 
     def __str__(self) -> str:
         return self.report
-
-
-def _median_time(fn, repeats: int) -> tuple[float, list[float]]:
-    times = []
-    for _ in range(repeats):
-        t0 = _time.perf_counter()
-        fn()
-        times.append(_time.perf_counter() - t0)
-    return statistics.median(times), times
 
 
 def _fmt(x: float) -> str:
@@ -90,9 +81,8 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
 
     timing_s: dict = {}
     if timing:
-        from .bench import interleaved_times
-        from .compile import compile_model
-        from .timeloop import simulate
+        from ..compile import compile_model
+        from ..solve.timeloop import simulate
 
         sys0 = compile_model(build(dict(p0)))
 
@@ -109,7 +99,7 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
         }
         for k, times in interleaved_times(runs, repeats).items():
             timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
-        timing_s["finite_difference"], timing_s["finite_difference_runs"] = _median_time(
+        timing_s["finite_difference"], timing_s["finite_difference_runs"] = median_time(
             lambda: sensitivities(build, p0, responses, method="forward-difference",
                                   step=fd_step, **settings), max(1, repeats // 2))
         for k in ("direct", "direct_fd", "finite_difference"):
@@ -212,7 +202,7 @@ def _report(s: dict, names, units, paper, notes) -> str:
 
 
 def _figures(study: StudyResult, res, body, target, undeformed, names, units, outp) -> dict:
-    from . import plots
+    from .. import plots
 
     written = {}
     arc = plots.arc_coordinate(np.real(undeformed))

@@ -18,10 +18,10 @@ from itertools import groupby
 
 import numpy as np
 
-from .compile import System, compile_model
-from .errors import SensitivityError
-from .factorization import DenseLU, SparseLU, no_sparse_arrays
-from .kernels.direct import (
+from ..compile import System, compile_model
+from ..compile.system import kernel_arrays, time_table
+from ..errors import SensitivityError
+from ..kernels.direct import (
     PERTURBED,
     block_recursion,
     csc_residual,
@@ -29,9 +29,10 @@ from .kernels.direct import (
     state_loads,
     update_sensitivities,
 )
-from .results import Result
-from .solver import Settings, kernel_arrays, time_table
-from .timeloop import StepInfo, integrate
+from ..results.result import Result
+from ..solve.linalg import DenseLU, SparseLU, no_sparse_arrays
+from ..solve.stepper import Settings
+from ..solve.timeloop import StepInfo, integrate
 
 CS_STEP = 1e-30
 HISTORIES = ("q", "v", "a", "lam")

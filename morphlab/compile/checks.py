@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ModelError
-from .model import Beam
+from ..errors import ModelError
+from ..model.model import Beam
 
 
 def _joint_hint(system, joint_name: str) -> str:

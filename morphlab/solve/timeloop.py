@@ -14,12 +14,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compile import System, compile_model
-from .errors import ModelError
-from .integrator import StepCoefficients
-from .kernels.joints import constraint_violation_history
-from .model import Model
-from .solver import Settings, State, Stepper, table_at, time_table
+from ..compile import System, compile_model
+from ..compile.system import table_at, time_table
+from ..errors import ModelError
+from ..kernels.joints import constraint_violation_history
+from ..model.model import Model
+from .scheme import StepCoefficients
+from .stepper import Settings, State, Stepper
 
 
 @dataclass
@@ -60,7 +61,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                          "(sensitivity runs need one fixed step sequence)")
     if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
         raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
-    from .results import Result
+    from ..results.result import Result
 
     settings.validate()
     stepper = Stepper(system, settings, scale=scale)
@@ -100,7 +101,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
         Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
         iters[n] = it
 
-    from .errors import SolverError
+    from ..errors import SolverError
 
     q_init = system.q0 if q0 is None else q0
     v_init = system.v0 if v0 is None else v0

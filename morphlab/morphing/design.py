@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SolverError
-from .model import Model
-from .morphing import (
+from ..errors import SolverError
+from ..model.model import Model
+from ..solve.statics import static
+from .leading_edge import (
     C_NODE,
     DEFAULTS,
     DROOP_MM,
@@ -29,7 +30,6 @@ from .morphing import (
     _nodes,
     mechanism_clearance,
 )
-from .statics import static
 
 
 # ------------------------------------------------------------------------------------- design

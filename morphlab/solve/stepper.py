@@ -23,10 +23,20 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from .compile import System
-from .errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
-from .factorization import SPLU_OPTIONS, DenseLU, SparseLU, StepFactorization, no_sparse_arrays
-from .integrator import (
+from ..compile.system import System, kernel_arrays
+from ..errors import ConvergenceError, ModelError, NonFiniteError, SingularMatrixError
+from ..kernels.assemble import add_residual, apply_correction, step_matrix, step_residual
+from ..kernels.newton import (
+    CONVERGED,
+    NONFINITE_CORRECTION,
+    NONFINITE_RESIDUAL,
+    NOT_CONVERGED,
+    PIVOT_REFUSED,
+    SINGULAR,
+    newton_loop,
+)
+from .linalg import SPLU_OPTIONS, DenseLU, SparseLU, StepFactorization, no_sparse_arrays
+from .scheme import (
     INITIAL,
     SCHEMES,
     GeneralizedAlpha,
@@ -35,16 +45,6 @@ from .integrator import (
     newmark_predict,
     newmark_update,
     step_coefficients,
-)
-from .kernels.assemble import add_residual, apply_correction, step_matrix, step_residual
-from .kernels.newton import (
-    CONVERGED,
-    NONFINITE_CORRECTION,
-    NONFINITE_RESIDUAL,
-    NOT_CONVERGED,
-    PIVOT_REFUSED,
-    SINGULAR,
-    newton_loop,
 )
 
 
@@ -116,21 +116,6 @@ class Settings:
     def h(self) -> float:
         """The step actually used, ``(t_end - t_start) / n_steps``."""
         return (self.t_end - self.t_start) / self.n_steps
-
-
-def kernel_arrays(system: System, dtype=None) -> tuple:
-    """The tuple ``S`` of system arrays for :mod:`morphlab.kernels.assemble` (cast to dtype)."""
-    dt = np.dtype(dtype) if dtype is not None else system.dtype
-
-    def f(x):
-        return np.ascontiguousarray(x, dtype=dt)
-
-    s = system
-    return (f(s.gravity), s.body_ref, f(s.body_scal), f(s.body_damp), s.flex_off, s.flex_dof,
-            f(s.flex_IS), f(s.flex_I0S), f(s.flex_I0IS), s.elem_body, s.elem_fdof, f(s.elem_M),
-            f(s.elem_St), f(s.elem_K), s.con_kind, s.con_dofs, f(s.con_u0), s.load_dofs,
-            f(s.load_u0), s.torque_dofs, s.border_off, s.border_map, s.elem_map, s.con_map_row,
-            s.con_map_col, s.con_map_H, s.load_map)
 
 
 class Stepper:
@@ -519,48 +504,3 @@ class Stepper:
         q1, v1, g1 = newmark_update(coef, qh, vh, a, st.a, st.g)
         new = State(t1, q1, v1, a, z[self.n_dof:] * self.scale, g1)
         return new, lu, it, z, qh, vh, R_hist, hist
-
-
-def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
-               ) -> tuple:
-    """Time-dependent data at every time of ``times``: ``(C, CD, CDD, F, T)`` with a leading
-    axis ``len(times)`` — profiles are evaluated once per run (vectorized where the profile
-    allows), not inside the Newton loop. ``cache`` shares profile tables between systems with
-    equal profiles (the perturbed designs of a sensitivity run)."""
-    dt = system.dtype if dtype is None else np.dtype(dtype)
-    times = np.asarray(times, dtype=float)
-    cache = {} if cache is None else cache
-
-    def tab(prof):
-        try:
-            key = (prof, times.size, float(times[0]), float(times[-1]))
-            hit = cache.get(key)
-        except TypeError:  # unhashable profile
-            key, hit = None, None
-        if hit is None:
-            hit = prof.table(times)
-            if key is not None:
-                cache[key] = hit
-        return hit
-
-    n_t = times.size
-    C = np.repeat(system.con_c0[None, :].astype(dt), n_t, axis=0)
-    CD = np.zeros_like(C)
-    CDD = np.zeros_like(C)
-    for row, prof in system.con_drive:
-        f, f1, f2 = tab(prof)
-        C[:, row] += f
-        CD[:, row] = f1
-        CDD[:, row] = f2
-    F = np.repeat(system.load_F0[None].astype(dt), n_t, axis=0)
-    for i, prof in enumerate(system.load_prof):
-        F[:, i, :] *= tab(prof)[0][:, None]
-    T = np.repeat(system.torque_T0[None].astype(dt), n_t, axis=0)
-    for i, prof in enumerate(system.torque_prof):
-        T[:, i] *= tab(prof)[0]
-    return tuple(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T))
-
-
-def table_at(table: tuple, k: int) -> tuple:
-    """The time arrays of entry ``k`` of a :func:`time_table`."""
-    return tuple(x[k] for x in table)

@@ -48,18 +48,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compile import System, compile_model
-from .errors import SensitivityError
-from .results import Result
-from .sensitivity_direct import (
+from ..compile import System, compile_model
+from ..errors import SensitivityError
+from ..results.result import Result
+from ..solve.stepper import Settings
+from ..solve.timeloop import integrate
+from .direct import (
     CS_STEP,
     HISTORIES,
     check_same_layout,
     direct_run,
     histories_to_store,
 )
-from .solver import Settings
-from .timeloop import integrate
 
 METHODS = ("direct", "direct-fd", "complex-step", "forward-difference", "central-difference")
 

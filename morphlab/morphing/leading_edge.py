@@ -84,11 +84,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import ModelError
+from ..model.model import Model
+from ..model.profiles import Custom, SmoothStep
+from ..results.responses import distance, ks_abs, max_by_real, rms
 from . import airfoil
-from .errors import ModelError
-from .model import Model
-from .profiles import Custom, SmoothStep
-from .responses import distance, ks_abs, max_by_real, rms
 
 __all__ = [
     "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
@@ -421,12 +421,12 @@ weigh more in our ratios."""
 def study(out=None, overrides: dict | None = None, *, quick: bool = False, figures: bool = True,
           timing: bool = True, progress: bool = False):
     """The paper's study on this model: responses, Table 1 sensitivities, Table 2 timing,
-    figures and ``out/morphing.json`` (see :func:`morphlab.study.run_study`).
+    figures and ``out/morphing.json`` (see :func:`morphlab.morphing.paper.run_study`).
 
     ``overrides`` changes design variables of :data:`DEFAULTS`; ``quick`` doubles the time step
     and times each run once.
     """
-    from .study import run_study
+    from .paper import run_study
 
     p0 = dict(DEFAULTS)
     for k, v in (overrides or {}).items():

@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .errors import ModelError
+from ..errors import ModelError
 
 
 def ks(values, rho: float):

@@ -20,10 +20,10 @@ try:  # SciPy's SuperLU wrapper, what splu calls after its input checks (see _Na
 except ImportError:  # pragma: no cover - other SciPy layouts: splu is used
     _gstrf = None
 
-from .kernels.dense import csc_to_dense, lu_factor
-from .kernels.dense import lu_solve as dense_lu_solve
-from .kernels.sparse_lu import refactor, symbolic
-from .kernels.sparse_lu import solve as sparse_solve
+from ..kernels.dense import csc_to_dense, lu_factor
+from ..kernels.dense import lu_solve as dense_lu_solve
+from ..kernels.sparse_lu import refactor, symbolic
+from ..kernels.sparse_lu import solve as sparse_solve
 
 # Step matrices of at most this many unknowns are factored dense (kernels.dense). Against
 # SuperLU (~20 us of set-up per factorization) the boundary was 60 unknowns; against the

@@ -7,11 +7,11 @@ import time as _time
 
 import numpy as np
 
-from .compile import System, compile_model
-from .errors import ConvergenceError, ModelError, NonFiniteError
-from .integrator import StepCoefficients, _is_real
-from .model import Model
-from .solver import Settings, Stepper
+from ..compile import System, compile_model
+from ..errors import ConvergenceError, ModelError, NonFiniteError
+from ..model.model import Model
+from .scheme import StepCoefficients, _is_real
+from .stepper import Settings, Stepper
 
 
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
@@ -45,8 +45,8 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     constraint rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing
     for the Newton correction of ``q`` (``beta h² = 1``).
     """
-    from .errors import SolverError
-    from .results import Result
+    from ..errors import SolverError
+    from ..results.result import Result
 
     if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
             and steps >= 1):

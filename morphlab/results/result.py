@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compile import System
-from .errors import ModelError
-from .model import Beam, RigidBody
+from ..compile.system import System
+from ..errors import ModelError
+from ..model.model import Beam, RigidBody
 
 
 @dataclass
@@ -173,9 +173,9 @@ class Result:
 
 def energy(res: Result) -> dict:
     """Kinetic, strain and gravitational energy, damping dissipation and external work."""
-    from .kernels.assemble import add_residual
-    from .kernels.joints import load_residual
-    from .solver import kernel_arrays, time_table
+    from ..compile.system import kernel_arrays, time_table
+    from ..kernels.assemble import add_residual
+    from ..kernels.joints import load_residual
 
     s = res.system
     S = kernel_arrays(s)

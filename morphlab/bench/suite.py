@@ -39,7 +39,8 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from .bench_report import table
+from ..studies.timing import interleaved_times
+from .report import table
 
 
 def _stats(times: list[float]) -> dict:
@@ -57,18 +58,6 @@ def _timeit(fn, repeats: int) -> dict:
     return _stats(times)
 
 
-def interleaved_times(fns: dict, repeats: int) -> dict:
-    """Wall times [s] of each function over ``repeats`` rounds that call every function once,
-    in turn, so that a change of the machine's load hits all of them alike."""
-    times: dict = {k: [] for k in fns}
-    for _ in range(repeats):
-        for k, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            times[k].append(time.perf_counter() - t0)
-    return times
-
-
 def _rounds(fns: dict, repeats: int) -> dict:
     """Median, min and max of each function: a warm-up call each, then interleaved rounds
     (:func:`interleaved_times`; the ratios are formed within one round set)."""
@@ -78,7 +67,7 @@ def _rounds(fns: dict, repeats: int) -> dict:
 
 
 def _morphing():
-    from . import morphing
+    from ..morphing import leading_edge as morphing
 
     return morphing
 
@@ -346,13 +335,13 @@ def case_floor(repeats: int, quick: bool) -> dict:
     derivatives, a state part from a single fill). Each figure is a
     call from Python (the dispatch of a kernel that takes the system tuple costs ~3 us of it;
     the compiled loops pay it once per step or block)."""
-    from .compile import compile_model
-    from .kernels.assemble import step_matrix, step_residual
-    from .kernels.direct import explicit_loads, split_matrices
-    from .kernels.newton import factor_matrix, solve_factored
-    from .sensitivity_direct import CS_STEP, _pseudo_load_data
-    from .solver import Settings
-    from .timeloop import integrate
+    from ..compile import compile_model
+    from ..kernels.assemble import step_matrix, step_residual
+    from ..kernels.direct import explicit_loads, split_matrices
+    from ..kernels.newton import factor_matrix, solve_factored
+    from ..sensitivity.direct import CS_STEP, _pseudo_load_data
+    from ..solve.stepper import Settings
+    from ..solve.timeloop import integrate
 
     mo = _morphing()
     settings = Settings(**mo.SETTINGS)
@@ -426,7 +415,7 @@ def case_exudyn(repeats: int, quick: bool) -> dict:
         import exudyn  # noqa: F401
     except ImportError:
         return {"skipped": "exudyn is not installed (pip install -e '.[bench]')"}
-    from . import _bench_exudyn
+    from . import exudyn as _bench_exudyn
 
     return _bench_exudyn.run(repeats, quick)
 
@@ -453,7 +442,7 @@ def main(argv=None) -> int:
         print(f"morphlab.bench: unknown cases {unknown}; choose from {list(CASES)}",
               file=sys.stderr)
         return 2
-    from .warmup import warmup
+    from ..warmup import warmup
 
     warmup()
     import morphlab
@@ -476,7 +465,3 @@ def main(argv=None) -> int:
         json.dump(results, fh, indent=2)
     print(table(results))
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,1 @@
+"""The benchmark suite (``python -m morphlab.bench``); imported by nothing in the library."""

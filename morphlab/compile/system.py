@@ -1,0 +1,216 @@
+"""The compiled system: flat arrays for the kernels, index tables for the user side, and the
+time-dependent data (profiles evaluated at the times of a run)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ModelError
+from ..kernels import joints as kjoints
+from ..model.model import Model
+
+
+@dataclass
+class BodyInfo:
+    """Where a body lives in the system arrays.
+
+    Attributes
+    ----------
+    index : int
+        Position in ``body_ref`` / ``body_scal``.
+    ref : (3,) int64
+        Global DOFs of ``R_x, R_y, theta``.
+    angle0 : float
+        Initial angle of the body frame.
+    node_dofs : (n_node, 3) int64 or None
+        Beams: global DOF of ``u, v, phi`` of each node in the body frame (``-1`` removed).
+    X : (n_node, 2) or None
+        Beams: node positions in the body frame.
+    elements : slice
+        Beams: rows of the element arrays.
+    """
+
+    name: str
+    index: int
+    ref: np.ndarray
+    angle0: object
+    kind: str
+    node_dofs: np.ndarray | None = None
+    X: np.ndarray | None = None
+    elements: slice | None = None
+
+
+@dataclass
+class System:
+    """Compiled model: flat arrays for the kernels and index tables for the user side.
+
+    All floating arrays share ``dtype``. The kernel-facing arrays are listed in the module
+    ``morphlab.kernels.assemble`` (:func:`kernel_args`).
+    """
+
+    model: Model
+    dtype: np.dtype
+    n_dof: int
+    n_con: int
+    q0: np.ndarray
+    v0: np.ndarray
+    gravity: np.ndarray
+    body_ref: np.ndarray
+    body_scal: np.ndarray
+    body_damp: np.ndarray
+    flex_off: np.ndarray
+    flex_dof: np.ndarray
+    flex_IS: np.ndarray
+    flex_I0S: np.ndarray
+    flex_I0IS: np.ndarray
+    elem_body: np.ndarray
+    elem_fdof: np.ndarray
+    elem_dofs: np.ndarray
+    elem_M: np.ndarray
+    elem_St: np.ndarray
+    elem_K: np.ndarray
+    elem_B: np.ndarray
+    con_kind: np.ndarray
+    con_dofs: np.ndarray
+    con_u0: np.ndarray
+    con_c0: np.ndarray
+    con_drive: list
+    load_dofs: np.ndarray
+    load_u0: np.ndarray
+    load_F0: np.ndarray
+    load_prof: list
+    torque_dofs: np.ndarray
+    torque_T0: np.ndarray
+    torque_prof: list
+    indptr: np.ndarray
+    indices: np.ndarray
+    border_off: np.ndarray
+    border_map: np.ndarray
+    elem_map: np.ndarray
+    con_map_row: np.ndarray
+    con_map_col: np.ndarray
+    con_map_H: np.ndarray
+    load_map: np.ndarray
+    bodies: dict = field(default_factory=dict)
+    dof_names: list = field(default_factory=list)
+    con_names: list = field(default_factory=list)
+    con_joint: list = field(default_factory=list)
+    length_scale: float = 1.0
+
+    @property
+    def n(self) -> int:
+        """Size of the saddle-point system, ``n_dof + n_con``."""
+        return self.n_dof + self.n_con
+
+    @property
+    def nnz(self) -> int:
+        return int(self.indices.shape[0])
+
+    def body(self, name: str) -> BodyInfo:
+        """Index information of the body called ``name``."""
+        try:
+            return self.bodies[name]
+        except KeyError:
+            known = ", ".join(repr(k) for k in self.bodies)
+            raise ModelError(f"no body {name!r} in model (bodies: {known})") from None
+
+    def time_arrays(self, t: float):
+        """Time-dependent data at ``t``: ``(c, cd, cdd, F, T)``.
+
+        ``c, cd, cdd`` (n_con,) are the constraint targets and their derivatives, ``F``
+        (n_load, 2) the point forces and ``T`` (n_torque,) the torques.
+        """
+        c = self.con_c0.copy()
+        cd = np.zeros_like(c)
+        cdd = np.zeros_like(c)
+        for row, prof in self.con_drive:
+            c[row] = c[row] + prof.value(t)
+            cd[row] = prof.d1(t)
+            cdd[row] = prof.d2(t)
+        F = self.load_F0.copy()
+        for i, prof in enumerate(self.load_prof):
+            F[i] = F[i] * prof.value(t)
+        T = self.torque_T0.copy()
+        for i, prof in enumerate(self.torque_prof):
+            T[i] = T[i] * prof.value(t)
+        return c, cd, cdd, F, T
+
+    def constraint_violation(self, q, v, t):
+        """``(phi, phid)``: position- and velocity-level violation of every row at time t."""
+        c, cd, _, _, _ = self.time_arrays(t)
+        dt = np.result_type(self.dtype, q.dtype)
+        phi = np.zeros(self.n_con, dtype=dt)
+        phid = np.zeros(self.n_con, dtype=dt)
+        kjoints.constraint_values(q.astype(dt), v.astype(dt), c.astype(dt), cd.astype(dt),
+                                  self.con_kind, self.con_dofs, self.con_u0.astype(dt), phi, phid)
+        return phi, phid
+
+    def constraint_matrix(self, q):
+        """Dense constraint Jacobian (n_con, n_dof) at ``q``."""
+        dt = np.result_type(self.dtype, q.dtype)
+        Jc = np.zeros((self.n_con, self.n_dof), dtype=dt)
+        kjoints.constraint_jacobian_matrix(q.astype(dt), self.con_kind, self.con_dofs,
+                                           self.con_u0.astype(dt), self.n_dof, Jc)
+        return Jc
+
+
+def kernel_arrays(system: System, dtype=None) -> tuple:
+    """The tuple ``S`` of system arrays for :mod:`morphlab.kernels.assemble` (cast to dtype)."""
+    dt = np.dtype(dtype) if dtype is not None else system.dtype
+
+    def f(x):
+        return np.ascontiguousarray(x, dtype=dt)
+
+    s = system
+    return (f(s.gravity), s.body_ref, f(s.body_scal), f(s.body_damp), s.flex_off, s.flex_dof,
+            f(s.flex_IS), f(s.flex_I0S), f(s.flex_I0IS), s.elem_body, s.elem_fdof, f(s.elem_M),
+            f(s.elem_St), f(s.elem_K), s.con_kind, s.con_dofs, f(s.con_u0), s.load_dofs,
+            f(s.load_u0), s.torque_dofs, s.border_off, s.border_map, s.elem_map, s.con_map_row,
+            s.con_map_col, s.con_map_H, s.load_map)
+
+
+def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
+               ) -> tuple:
+    """Time-dependent data at every time of ``times``: ``(C, CD, CDD, F, T)`` with a leading
+    axis ``len(times)`` — profiles are evaluated once per run (vectorized where the profile
+    allows), not inside the Newton loop. ``cache`` shares profile tables between systems with
+    equal profiles (the perturbed designs of a sensitivity run)."""
+    dt = system.dtype if dtype is None else np.dtype(dtype)
+    times = np.asarray(times, dtype=float)
+    cache = {} if cache is None else cache
+
+    def tab(prof):
+        try:
+            key = (prof, times.size, float(times[0]), float(times[-1]))
+            hit = cache.get(key)
+        except TypeError:  # unhashable profile
+            key, hit = None, None
+        if hit is None:
+            hit = prof.table(times)
+            if key is not None:
+                cache[key] = hit
+        return hit
+
+    n_t = times.size
+    C = np.repeat(system.con_c0[None, :].astype(dt), n_t, axis=0)
+    CD = np.zeros_like(C)
+    CDD = np.zeros_like(C)
+    for row, prof in system.con_drive:
+        f, f1, f2 = tab(prof)
+        C[:, row] += f
+        CD[:, row] = f1
+        CDD[:, row] = f2
+    F = np.repeat(system.load_F0[None].astype(dt), n_t, axis=0)
+    for i, prof in enumerate(system.load_prof):
+        F[:, i, :] *= tab(prof)[0][:, None]
+    T = np.repeat(system.torque_T0[None].astype(dt), n_t, axis=0)
+    for i, prof in enumerate(system.torque_prof):
+        T[:, i] *= tab(prof)[0]
+    return tuple(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T))
+
+
+def table_at(table: tuple, k: int) -> tuple:
+    """The time arrays of entry ``k`` of a :func:`time_table`."""
+    return tuple(x[k] for x in table)

@@ -1,0 +1,6 @@
+"""Stage 5, sensitivity: ``build(p) -> gradients`` by strategies that share the primal time loop,
+its factorizations and its residual kernels."""
+
+from .api import SensitivityResult, sensitivities
+
+__all__ = ["SensitivityResult", "sensitivities"]

@@ -1,0 +1,11 @@
+"""Stage 4, solve: ``System -> Result``. The generalized-alpha scheme as data, one step (Newton
+on the sparse saddle-point system), factorizations of the step matrix, the time loop and
+statics."""
+
+from .scheme import GeneralizedAlpha
+from .statics import static
+from .stepper import Settings, State, Stepper
+from .timeloop import StepInfo, integrate, simulate
+
+__all__ = ["GeneralizedAlpha", "Settings", "State", "StepInfo", "Stepper", "integrate",
+           "simulate", "static"]

@@ -1,0 +1,25 @@
+"""Wall-clock timing of whole runs, for comparisons formed within one process."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+
+
+def interleaved_times(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, list]:
+    """Wall times [s] of each function over ``repeats`` rounds that call every function once,
+    in turn, so that a change of the machine's load hits all of them alike."""
+    times: dict = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return times
+
+
+def median_time(fn: Callable[[], object], repeats: int) -> tuple[float, list[float]]:
+    """Median and list of the wall times [s] of ``repeats`` calls of ``fn``."""
+    times = interleaved_times({"fn": fn}, repeats)["fn"]
+    return statistics.median(times), times
