@@ -12,7 +12,12 @@ import pytest
 import scipy.sparse as sp
 from morphlab.kernels.direct import csc_residual, update_sensitivities
 
-from morphlab.solve.scheme import GeneralizedAlpha, newmark_predict, newmark_update, step_coefficients
+from morphlab.solve.scheme import (
+    GeneralizedAlpha,
+    newmark_predict,
+    newmark_update,
+    step_coefficients,
+)
 
 
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])

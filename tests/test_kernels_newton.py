@@ -16,8 +16,8 @@ from morphlab.kernels.newton import (
 )
 
 import morphlab as ml
-from morphlab.solve import linalg as factorization
 from morphlab.compile.system import table_at, time_table
+from morphlab.solve import linalg as factorization
 from morphlab.solve.stepper import Settings, Stepper
 
 TAU = factorization.SPLU_OPTIONS["diag_pivot_thresh"]

@@ -27,10 +27,9 @@ import pytest
 import scipy.sparse.linalg
 
 import morphlab as ml
-import morphlab.solve.linalg
 import morphlab.sensitivity.api
 import morphlab.sensitivity.direct
-import morphlab.solve.stepper
+import morphlab.solve.linalg
 import morphlab.solve.stepper
 
 R = ml.responses
@@ -291,7 +290,8 @@ def test_refinement_residuals_at_round_off(name):
 @pytest.mark.parametrize("name", CASES)
 def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme):
     """A direct run keeps the converged steps and solves their sensitivities in blocks
-    (``morphlab.sensitivity.direct.BLOCK_BYTES``): the same kernels on the same data, called at other
+    (``morphlab.sensitivity.direct.BLOCK_BYTES``): the same kernels on the same data, called at
+    other
     times, so one step per block, a few steps per block and the whole run in one block must
     give the same numbers bit for bit. For the sparse path as well (DENSE_MAX = 0), whose
     recursion runs from Python instead of in one compiled call, and for the paper's weighting,
@@ -303,7 +303,8 @@ def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme)
     default = sd.BLOCK_BYTES
     # (DENSE_MAX: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
     # per step here with dense factors; on the sparse path ~4-7 kB with refactored ones,
-    # ~45 kB with SuperLU's where it chose a new row order, by morphlab.sensitivity.direct._lu_bytes)
+    # ~45 kB with SuperLU's where it chose a new row order, by
+    # morphlab.sensitivity.direct._lu_bytes)
     for dense_max, few in ((1000, 60_000), (0, 100_000)):
         monkeypatch.setattr(morphlab.solve.linalg, "DENSE_MAX", dense_max)
         runs = []
