@@ -1,15 +1,10 @@
 """Whole-system residual and Newton matrix: one compiled call each.
 
-The system arrays travel as one tuple ``S`` (built once per compiled model by
-``morphlab.solver.kernel_arrays``), so a Newton iteration costs one call for the residual and one
-for the matrix, whatever the number of bodies, elements and joints. The matrix is written into
-the ``data`` array of a CSC matrix whose pattern was fixed at compile time; every contribution
-has a precomputed position (``-1``: skipped).
-
-``S`` = (gravity, body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S,
-flex_I0IS, elem_body, elem_fdof, elem_M, elem_St, elem_K, con_kind, con_dofs, con_u0,
-load_dofs, load_u0, torque_dofs, border_off, border_map, elem_map, con_map_row, con_map_col,
-con_map_H, load_map)
+The system arrays travel as one :class:`~morphlab.kernels.system.SystemArrays` ``S`` (built once
+per compiled model by ``morphlab.compile.kernel_arrays``), so a Newton iteration costs one call
+for the residual and one for the matrix, whatever the number of bodies, elements and joints.
+The matrix is written into the ``data`` array of a CSC matrix whose pattern was fixed at
+compile time; every contribution has a precomputed position (``-1``: skipped).
 """
 
 import numpy as np
@@ -17,6 +12,7 @@ from numba import njit
 
 from .ffrf import body_jacobian, body_residual
 from .joints import constraint_jacobian, constraint_residual, load_jacobian, load_residual
+from .system import all_parts
 
 
 @njit(cache=True)
@@ -26,25 +22,20 @@ def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cd
     Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext)``;
     constraint rows: ``scale (wcm J a - wcf F_c)`` (paper eq. 25–26 for one time level).
     """
-    parts = (np.arange(S[1].shape[0]), np.arange(S[10].shape[0]),
-             np.ones(S[5].shape[0], dtype=np.bool_), np.arange(S[14].shape[0]),
-             np.arange(S[17].shape[0]), np.arange(S[19].shape[0]))
-    add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
-                       F, T, n_dof, R)
+    add_residual_parts(S, all_parts(S), q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd,
+                       cdd, F, T, n_dof, R)
 
 
 @njit(cache=True)
 def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
                        F, T, n_dof, R):
-    """:func:`add_residual` over the listed parts only: ``parts = (bodies, elements, flexible
-    coordinates (bool mask), constraint rows, loads, torques)`` (int64 index arrays but the
-    mask). The sensitivity pseudo-loads evaluate the parts a design variable changes
+    """:func:`add_residual` over the :class:`~morphlab.kernels.system.Parts` ``parts`` only:
+    the sensitivity pseudo-loads evaluate the parts a design variable changes
     (``morphlab.kernels.direct``)."""
-    body_residual(q, v, a, wm, wf, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7], S[8],
-                  S[9], S[10], S[11], S[12], S[13], parts[0], parts[1], parts[2], R)
-    constraint_residual(q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
-                        S[14], S[15], S[16], parts[3], n_dof, R)
-    load_residual(q, wf, F, S[17], S[18], T, S[19], parts[4], parts[5], R)
+    body_residual(S, q, v, a, wm, wf, parts, R)
+    constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, parts.rows,
+                        n_dof, R)
+    load_residual(S, q, wf, F, T, parts.loads, parts.torques, R)
 
 
 @njit(cache=True)
@@ -56,11 +47,9 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     derivative term).
     """
     data[:] = 0.0
-    body_jacobian(q, v, a, cm, cf, bh2, gh, S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7],
-                  S[8], S[9], S[10], S[11], S[12], S[13], S[20], S[21], S[22], data)
-    constraint_jacobian(q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, S[14], S[15], S[16],
-                        S[23], S[24], S[25], data)
-    load_jacobian(q, cf, bh2, F, S[17], S[18], S[26], data)
+    body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
+    constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
+    load_jacobian(S, q, cf, bh2, F, data)
 
 
 @njit(cache=True)

@@ -39,17 +39,7 @@ from numba import njit
 
 from .assemble import add_residual_parts, fill_matrix
 from .newton import solve_factored
-
-# positions in ``S`` of the floating-point arrays that a design variable can change; a
-# sensitivity run stacks them over the design variables (leading axis n_x)
-PERTURBED = (0, 2, 3, 6, 7, 8, 11, 12, 13, 16, 18)
-
-
-@njit(cache=True)
-def _perturbed_tuple(S, P, i):
-    return (P[0][i], S[1], P[1][i], P[2][i], S[4], S[5], P[3][i], P[4][i], P[5][i], S[9],
-            S[10], P[6][i], P[7][i], P[8][i], S[14], S[15], P[9][i], S[17], P[10][i], S[19],
-            S[20], S[21], S[22], S[23], S[24], S[25], S[26])
+from .system import Parts, with_design
 
 
 @njit(cache=True)
@@ -150,16 +140,16 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                    b0, b1, TAB, tab0, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
     ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
-    converged state over variable ``i``'s parts, with its arrays ``P[.][i]`` and time arrays
+    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time arrays
     ``TA[.][i]``, or the nominal ``S``, ``ta``. With a complex step (``pert_i = i h``) this is
     ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
 
     Parameters
     ----------
-    S : tuple
+    S : SystemArrays
         Nominal system arrays in the dtype of ``work``.
-    P : tuple
-        The arrays of ``S`` at positions :data:`PERTURBED`, stacked over the n_x designs.
+    P : DesignArrays
+        The design data of the n_x perturbed designs (:mod:`morphlab.kernels.system`).
     parts : tuple of 12 int64 arrays
         ``(offsets, indices)`` of the bodies, elements, flexible coordinates, constraint rows,
         loads and torques each variable changes (CSR layout over the variables).
@@ -185,12 +175,12 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
-    flex_on = np.zeros(S[5].shape[0], dtype=np.bool_)
+    flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
-        pi = (b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
-              c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
-              t_idx[t_off[i]:t_off[i + 1]])
-        if (pi[0].size + pi[3].size + pi[4].size + pi[5].size) == 0:
+        pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
+                   c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
+                   t_idx[t_off[i]:t_off[i + 1]])
+        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
             continue  # the variable changes only the initial state
         flex = f_idx[f_off[i]:f_off[i + 1]]
         for k in flex:
@@ -199,7 +189,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                    TAB[4][k_old, i])
         tai_new = (TAB[0][k_new, i], TAB[1][k_new, i], TAB[2][k_new, i], TAB[3][k_new, i],
                    TAB[4][k_new, i])
-        _explicit_residual(_perturbed_tuple(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
+        _explicit_residual(with_design(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
                            tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
                            b0, b1, n_dof, R)
         if forward:

@@ -156,11 +156,7 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
 
 
 @njit(cache=True)
-def body_residual(
-    q, v, a, wm, wf, gravity,
-    body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
-    elem_body, elem_fdof, elem_M, elem_St, elem_K, bodies, elems, flex_on, R,
-):
+def body_residual(S, q, v, a, wm, wf, parts, R):
     """Add the bodies' ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
 
     Parameters
@@ -169,9 +165,9 @@ def body_residual(
         Generalized coordinates, velocities, accelerations (one dtype).
     wm, wf : scalar
         Weights of the inertia term and of the force terms.
-    gravity : (2,)
-        Gravitational acceleration [length/time²].
-    bodies, elems : int64 arrays; flex_on : (n_flex,) bool
+    S : SystemArrays
+        The system (:mod:`morphlab.kernels.system`).
+    parts : Parts
         The bodies, elements and flexible coordinates evaluated: all of them for the residual.
         A sensitivity pseudo-load passes only those whose data a design variable changes (and
         the coordinates of its elements); with a real state the skipped parts carry no
@@ -180,15 +176,18 @@ def body_residual(
     R : (>= n_dof,), in/out
         Residual; the body rows are added to.
     """
+    bodies, elems, flex_on = parts.bodies, parts.elements, parts.flex
     if bodies.shape[0] == 0:
         return
+    body_ref, body_scal, flex_off, flex_dof = S.body_ref, S.body_scal, S.flex_off, S.flex_dof
+    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
-        q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K, elems,
-        n_flex, False, R
+        q, v, a, flex_dof, S.elem_body, S.body_damp, S.elem_fdof, S.elem_M, S.elem_St, S.elem_K,
+        elems, n_flex, False, R
     )
-    gx = gravity[0]
-    gy = gravity[1]
+    gx = S.gravity[0]
+    gy = S.gravity[1]
     for b in bodies:
         iR0 = body_ref[b, 0]
         iR1 = body_ref[b, 1]
@@ -245,11 +244,7 @@ def body_residual(
 
 
 @njit(cache=True)
-def body_jacobian(
-    q, v, a, cm, cf, bh2, gh, gravity,
-    body_ref, body_scal, body_damp, flex_off, flex_dof, flex_IS, flex_I0S, flex_I0IS,
-    elem_body, elem_fdof, elem_M, elem_St, elem_K, border_off, border_map, elem_map, data,
-):
+def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
     """Add every body's block of ``d(residual)/d(a)`` to the CSC ``data`` array.
 
     The residual block is ``cm M(q) a + cf F(q, q')`` with ``q = q_pred + bh2 a`` and
@@ -262,17 +257,22 @@ def body_jacobian(
         Weights of the inertia and force terms (``1 - alpha_m``, ``1 - alpha_f``).
     bh2, gh : scalar
         ``beta h²`` and ``gamma h`` of the Newmark update.
-    border_off : (n_body + 1,) int64
-        Offsets of each body's border entries: the 3 x 3 reference block, then the 3 x n_f
-        reference-row/flex-column entries, then the n_f x 3 flex-row/reference-column entries
-        (row-major within each part).
-    elem_body : (n_elem,) int64
-        Body index of each element.
-    border_map, elem_map : int64
-        Position in ``data`` of every border entry and every element entry (``-1``: skipped).
+    S : SystemArrays
+        The system (:mod:`morphlab.kernels.system`); ``S.border_off`` are the offsets of each
+        body's border entries in ``S.border_map``: the 3 x 3 reference block, then the
+        3 x n_f reference-row/flex-column entries, then the n_f x 3 flex-row/reference-column
+        entries (row-major within each part); ``S.border_map``, ``S.elem_map`` the position in
+        ``data`` of every border and element entry (``-1``: skipped).
     data : (nnz,), in/out
         CSC data array of the Newton matrix.
     """
+    body_ref, body_scal, body_damp, flex_off, flex_dof = (S.body_ref, S.body_scal, S.body_damp,
+                                                          S.flex_off, S.flex_dof)
+    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
+    elem_body, elem_fdof, elem_M, elem_St, elem_K = (S.elem_body, S.elem_fdof, S.elem_M, S.elem_St,
+                                                     S.elem_K)
+    border_off, border_map, elem_map = S.border_off, S.border_map, S.elem_map
+    gravity = S.gravity
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,

@@ -2,13 +2,15 @@
 
 Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 0`` of two kinds:
 
-* kind 0 / 1: the x / y component of ``r_P - r_Q``, with ``r = R + A (u0 + w)`` for a material
-  point of a body (``w`` the nodal displacement of a beam node, zero for a rigid body point);
-* kind 2: the angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` (``phi`` the nodal rotation).
+* :data:`ROW_X` / :data:`ROW_Y` (0 / 1): the x / y component of ``r_P - r_Q``, with
+  ``r = R + A (u0 + w)`` for a material point of a body (``w`` the nodal displacement of a beam
+  node, zero for a rigid body point);
+* :data:`ROW_ANGLE` (2): the angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` (``phi`` the nodal
+  rotation).
 
 A side (P or Q) is described by the global DOFs ``(R_x, R_y, theta, u, v, phi)`` of its point
 (``-1`` where absent; all ``-1`` for the ground) and its body-frame position ``u0``. Revolute =
-two rows of kinds 0 and 1; weld = kinds 0, 1, 2; a ground fix any subset; a driving constraint
+an x and a y row; weld = x, y and angle rows; a ground fix any subset; a driving constraint
 a kind-2 row with a time-dependent ``c``.
 
 The acceleration-level right-hand side with Baumgarte-type stabilization (part of the residual,
@@ -22,6 +24,10 @@ add ``w_l J^T lambda`` to the equations of motion (paper eq. 25–26 use ``w_l =
 
 import numpy as np
 from numba import njit
+
+#: Kinds of constraint rows (``con_kind``): the x and y components of ``r_P - r_Q`` and the
+#: angle ``(theta_P + phi_P) - (theta_Q + phi_Q)``.
+ROW_X, ROW_Y, ROW_ANGLE = 0, 1, 2
 
 
 @njit(cache=True)
@@ -48,7 +54,7 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     vth = v[dofs[2]] if dofs[2] >= 0 else zero
     ath = a[dofs[2]] if dofs[2] >= 0 else zero
-    if kind == 2:
+    if kind == ROW_ANGLE:
         phi = q[dofs[5]] if dofs[5] >= 0 else zero
         z6 = (zero, zero, zero, zero, zero, zero)
         return th + phi + zero, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
@@ -64,7 +70,7 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     ux = ux0 + wx
     uy = uy0 + wy
     # A = [[c, -s], [s, c]], AĨ = [[-s, -c], [c, -s]]; row kind of A u, AĨ u, A and AĨ
-    if kind == 0:
+    if kind == ROW_X:
         Auk = c * ux - s * uy
         AIuk = -(s * ux + c * uy)
         A0 = c
@@ -96,7 +102,7 @@ def _side_hessian(kind, dofs, ux0, uy0, q):
     """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side
     (symmetric; all zero for angle rows)."""
     zero = q[0] * 0.0 + ux0 * 0.0  # the scalar type of state and point (see _side)
-    if kind == 2:
+    if kind == ROW_ANGLE:
         return zero, zero, zero
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     wx = q[dofs[3]] if dofs[3] >= 0 else zero
@@ -105,7 +111,7 @@ def _side_hessian(kind, dofs, ux0, uy0, q):
     s = np.sin(th) + zero
     ux = ux0 + wx
     uy = uy0 + wy
-    if kind == 0:
+    if kind == ROW_X:
         return -(c * ux - s * uy), -s, -c
     return -(s * ux + c * uy), c, -s
 
@@ -121,10 +127,8 @@ def _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
 
 
 @njit(cache=True)
-def constraint_residual(
-    q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, con_kind, con_dofs, con_u0, rows,
-    n_dof, R
-):
+def constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows, n_dof,
+                        R):
     """Add ``wl J^T lam`` to the equation rows and ``scale (wcm J a - wcf F_c)`` to the
     constraint rows ``R[n_dof + i]``.
 
@@ -134,12 +138,14 @@ def constraint_residual(
         Physical Lagrange multipliers.
     c, cd, cdd : (n_con,)
         Target value of each row and its first and second time derivatives at this time.
-    con_kind : (n_con,) int64; con_dofs : (n_con, 2, 6) int64; con_u0 : (n_con, 2, 2)
-        Row description (module docstring).
+    S : SystemArrays
+        The rows are described by ``S.con_kind``, ``S.con_dofs``, ``S.con_u0`` (module
+        docstring).
     rows : int64 array
         The rows evaluated (all of them, or those a design variable changes; see
         ``ffrf.body_residual``).
     """
+    con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
     zero = R[0] * 0.0
     for i in rows:
         kind = con_kind[i]
@@ -167,16 +173,16 @@ def constraint_residual(
 
 
 @njit(cache=True)
-def constraint_jacobian(
-    q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, con_kind, con_dofs, con_u0,
-    map_row, map_col, map_H, data,
-):
+def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
     """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC ``data``.
 
-    ``map_row[i, side, j]``: position of (constraint row i, DOF j); ``map_col[i, side, j]``:
-    position of (DOF j, multiplier column i); ``map_H[i, side, j, k]``: position of
-    (DOF j, DOF k) of the same side. ``-1`` marks an absent entry.
+    ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
+    ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
+    ``S.con_map_H[i, side, j, k]``: position of (DOF j, DOF k) of the same side. ``-1`` marks
+    an absent entry.
     """
+    con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
+    map_row, map_col, map_H = S.con_map_row, S.con_map_col, S.con_map_H
     for i in range(con_kind.shape[0]):
         kind = con_kind[i]
         for side in range(2):
@@ -200,7 +206,7 @@ def constraint_jacobian(
                 p = map_col[i, side, j]
                 if p >= 0:
                     data[p] += cl * scale * sg * grad[j]
-            if kind != 2:
+            if kind != ROW_ANGLE:
                 _add_hessian(kind, dofs, ux0, uy0, q, cl * bh2 * sg * lam[i], map_H, i, side,
                              data)
 
@@ -246,22 +252,23 @@ def constraint_jacobian_matrix(q, con_kind, con_dofs, con_u0, n_dof, Jc):
 
 
 @njit(cache=True)
-def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, loads, torques, R):
+def load_residual(S, q, wf, F, T, loads, torques, R):
     """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R``.
 
     Parameters
     ----------
+    S : SystemArrays
+        ``S.load_dofs``, ``S.load_u0``: the point of application of each point load (same
+        description as a constraint side); ``S.torque_dofs``: the DOF of the body angle and
+        of the nodal rotation (``-1`` if absent) each torque acts on.
     F : (n_load, 2)
         Global force vector of each point load at this time [force].
-    load_dofs : (n_load, 6) int64; load_u0 : (n_load, 2)
-        Point of application (same description as a constraint side).
     T : (n_torque,)
         Torque values at this time [force·length].
-    torque_dofs : (n_torque, 2) int64
-        DOF of the body angle and of the nodal rotation (``-1`` if absent) the torque acts on.
     loads, torques : int64 arrays
         The loads and torques evaluated (all, or those a design variable changes).
     """
+    load_dofs, load_u0, torque_dofs = S.load_dofs, S.load_u0, S.torque_dofs
     for i in loads:
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])
@@ -278,8 +285,10 @@ def load_residual(q, wf, F, load_dofs, load_u0, T, torque_dofs, loads, torques, 
 
 
 @njit(cache=True)
-def load_jacobian(q, cf, bh2, F, load_dofs, load_u0, load_map, data):
-    """Add ``-cf bh2 d(Q_ext)/dq`` of point forces to ``data`` (``load_map`` (n_load, 6, 6))."""
+def load_jacobian(S, q, cf, bh2, F, data):
+    """Add ``-cf bh2 d(Q_ext)/dq`` of point forces to ``data`` (positions ``S.load_map``
+    (n_load, 6, 6))."""
+    load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
     for i in range(load_dofs.shape[0]):
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from morphlab.kernels import ffrf
+from morphlab.kernels.system import all_parts
 from test_kernels_beam import local_shape, stiffness_reference
 
 import morphlab as ml
@@ -165,36 +166,22 @@ def quadratic_velocity_reference(system, q, v):
 
 
 # ---------------------------------------------------------------- kernel calls
-BODY_ARRAYS = ("body_ref", "body_scal", "body_damp", "flex_off", "flex_dof", "flex_IS",
-               "flex_I0S", "flex_I0IS")
-ELEM_ARRAYS = ("elem_fdof", "elem_M", "elem_St", "elem_K")
-
-
-def _arr(system, name, dt):
-    x = getattr(system, name)
-    return np.ascontiguousarray(x if x.dtype.kind == "i" else x.astype(dt))
-
-
 def residual(system, q, v, a, wm, wf, gravity=GRAVITY, stiffness=True):
     """body_residual on the System arrays (complex when any state is complex)."""
     dt = np.result_type(q, v, a, float)
-    args = [_arr(system, k, dt) for k in BODY_ARRAYS + ("elem_body",) + ELEM_ARRAYS]
+    S = ml.compile.kernel_arrays(system, dt)._replace(gravity=np.asarray(gravity, dtype=dt))
     if not stiffness:
-        args[-1] = np.zeros_like(args[-1])
+        S = S._replace(elem_K=np.zeros_like(S.elem_K))
     R = np.zeros(system.n_dof, dtype=dt)
-    ffrf.body_residual(q.astype(dt), v.astype(dt), a.astype(dt), wm, wf,
-                       np.asarray(gravity, dtype=dt), *args, np.arange(len(system.body_ref)),
-                       np.arange(len(system.elem_body)), np.ones(len(system.flex_dof), bool), R)
+    ffrf.body_residual(S, q.astype(dt), v.astype(dt), a.astype(dt), wm, wf, all_parts(S), R)
     return R
 
 
 def jacobian(system, q, v, a, cm, cf, bh2, gh):
     """body_jacobian scattered into the compiled CSC pattern, as a dense (n_dof, n_dof)."""
     data = np.zeros(system.nnz)
-    args = [_arr(system, k, float) for k in BODY_ARRAYS]
-    ffrf.body_jacobian(q, v, a, cm, cf, bh2, gh, GRAVITY.copy(), *args, system.elem_body,
-                       *[_arr(system, k, float) for k in ELEM_ARRAYS], system.border_off,
-                       system.border_map, system.elem_map, data)
+    S = ml.compile.kernel_arrays(system, float)._replace(gravity=GRAVITY.copy())
+    ffrf.body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
     n = system.n
     return sp.csc_matrix((data, system.indices, system.indptr), shape=(n, n)).toarray()
 

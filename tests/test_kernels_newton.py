@@ -112,7 +112,7 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     assert (status3, bad3) == (NONFINITE_RESIDUAL, -1) and z3 is z
     assert np.all(data3 == 7.0)
     # all masses, stiffnesses and joints scaled to zero: the factorization reports a column
-    S0 = tuple(x * 0 if x.dtype == dt else x for x in S)
+    S0 = type(S)(*(x * 0 if x.dtype == dt else x for x in S))
     z4, status4, bad4, _ = iterate(S0, qh, np.empty(n, dtype=dt),
                                    np.empty(system.nnz, dtype=dt), _factor_arrays(fac, n, dt))
     assert status4 == (SINGULAR if kind == "dense" else PIVOT_REFUSED)

@@ -214,7 +214,7 @@ def test_singular_step_matrix_names_the_time_and_the_step(newton_path):
 
     system = ml.compile_model(flexible_mechanism())
     stp = Stepper(system, Settings(t_end=0.01, dt=1e-3))
-    stp.S = tuple(x * 0.0 if x.dtype.kind == "f" else x for x in stp.S)
+    stp.S = type(stp.S)(*(x * 0.0 if x.dtype.kind == "f" else x for x in stp.S))
     with pytest.raises(ml.SingularMatrixError) as err:
         stp.initial(0.0, system.q0, system.v0)
     e = err.value

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
+from ..kernels.joints import ROW_ANGLE
 from ..model.model import Beam
 
 
@@ -105,7 +106,7 @@ def constraint_rank(system, q=None):
             nd = info.node_dofs[:, 2]
             rot[nd[nd >= 0]] = True
     col = np.where(rot, 1.0 / L, 1.0)
-    row = np.where(system.con_kind == 2, L, 1.0)
+    row = np.where(system.con_kind == ROW_ANGLE, L, 1.0)
     Js = row[:, None] * J * col[None, :]
     used = np.flatnonzero(np.any(Js != 0.0, axis=0))
     if used.size == 0:

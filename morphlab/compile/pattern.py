@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.joints import ROW_ANGLE
+
 # entries of a side's 6 x 6 Hessian that can be nonzero (theta-theta, theta-w, w-theta)
 _HESS_ENTRIES = ((2, 2), (2, 3), (3, 2), (2, 4), (4, 2))
 
@@ -57,7 +59,7 @@ def newton_pattern(s) -> dict:
     Hr = -np.ones((n_con, 2, 6, 6), dtype=np.int64)
     Hc = -np.ones((n_con, 2, 6, 6), dtype=np.int64)
     for (j, k) in _HESS_ENTRIES:
-        point_rows = (s["con_kind"] != 2)[:, None]
+        point_rows = (s["con_kind"] != ROW_ANGLE)[:, None]
         Hr[:, :, j, k] = np.where(point_rows, cd[:, :, j], -1)
         Hc[:, :, j, k] = np.where(point_rows, cd[:, :, k], -1)
     H_start = add(Hr, Hc)

@@ -4,11 +4,13 @@ time-dependent data (profiles evaluated at the times of a run)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ModelError
 from ..kernels import joints as kjoints
+from ..kernels.system import DESIGN_FIELDS, SystemArrays
 from ..model.model import Model
 
 
@@ -116,26 +118,9 @@ class System:
             known = ", ".join(repr(k) for k in self.bodies)
             raise ModelError(f"no body {name!r} in model (bodies: {known})") from None
 
-    def time_arrays(self, t: float):
-        """Time-dependent data at ``t``: ``(c, cd, cdd, F, T)``.
-
-        ``c, cd, cdd`` (n_con,) are the constraint targets and their derivatives, ``F``
-        (n_load, 2) the point forces and ``T`` (n_torque,) the torques.
-        """
-        c = self.con_c0.copy()
-        cd = np.zeros_like(c)
-        cdd = np.zeros_like(c)
-        for row, prof in self.con_drive:
-            c[row] = c[row] + prof.value(t)
-            cd[row] = prof.d1(t)
-            cdd[row] = prof.d2(t)
-        F = self.load_F0.copy()
-        for i, prof in enumerate(self.load_prof):
-            F[i] = F[i] * prof.value(t)
-        T = self.torque_T0.copy()
-        for i, prof in enumerate(self.torque_prof):
-            T[i] = T[i] * prof.value(t)
-        return c, cd, cdd, F, T
+    def time_arrays(self, t: float) -> TimeArrays:
+        """Time-dependent data at ``t`` (:class:`TimeArrays`)."""
+        return table_at(time_table(self, np.array([float(t)])), 0)
 
     def constraint_violation(self, q, v, t):
         """``(phi, phid)``: position- and velocity-level violation of every row at time t."""
@@ -156,27 +141,44 @@ class System:
         return Jc
 
 
-def kernel_arrays(system: System, dtype=None) -> tuple:
-    """The tuple ``S`` of system arrays for :mod:`morphlab.kernels.assemble` (cast to dtype)."""
+def kernel_arrays(system: System, dtype=None) -> SystemArrays:
+    """The arrays of ``system`` the kernels read (:class:`~morphlab.kernels.system.SystemArrays`),
+    the design data cast to ``dtype`` (default: the system's)."""
     dt = np.dtype(dtype) if dtype is not None else system.dtype
+    design = set(DESIGN_FIELDS)
+    return SystemArrays(*(np.ascontiguousarray(getattr(system, name),
+                                               dtype=dt if name in design else None)
+                          for name in SystemArrays._fields))
 
-    def f(x):
-        return np.ascontiguousarray(x, dtype=dt)
 
-    s = system
-    return (f(s.gravity), s.body_ref, f(s.body_scal), f(s.body_damp), s.flex_off, s.flex_dof,
-            f(s.flex_IS), f(s.flex_I0S), f(s.flex_I0IS), s.elem_body, s.elem_fdof, f(s.elem_M),
-            f(s.elem_St), f(s.elem_K), s.con_kind, s.con_dofs, f(s.con_u0), s.load_dofs,
-            f(s.load_u0), s.torque_dofs, s.border_off, s.border_map, s.elem_map, s.con_map_row,
-            s.con_map_col, s.con_map_H, s.load_map)
+class TimeArrays(NamedTuple):
+    """Time-dependent data at one time: constraint targets ``c`` and their first and second
+    time derivatives ``cd``, ``cdd`` (n_con,), point forces ``F`` (n_load, 2), torques ``T``
+    (n_torque,)."""
+
+    c: np.ndarray
+    cd: np.ndarray
+    cdd: np.ndarray
+    F: np.ndarray
+    T: np.ndarray
+
+
+class TimeTable(NamedTuple):
+    """:class:`TimeArrays` at every time of a run, each with a leading axis n_t."""
+
+    C: np.ndarray
+    CD: np.ndarray
+    CDD: np.ndarray
+    F: np.ndarray
+    T: np.ndarray
 
 
 def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
-               ) -> tuple:
-    """Time-dependent data at every time of ``times``: ``(C, CD, CDD, F, T)`` with a leading
-    axis ``len(times)`` — profiles are evaluated once per run (vectorized where the profile
-    allows), not inside the Newton loop. ``cache`` shares profile tables between systems with
-    equal profiles (the perturbed designs of a sensitivity run)."""
+               ) -> TimeTable:
+    """Time-dependent data at every time of ``times`` (:class:`TimeTable`): profiles are
+    evaluated once per run (vectorized where the profile allows), not inside the Newton loop.
+    ``cache`` shares profile tables between systems with equal profiles (the perturbed designs
+    of a sensitivity run)."""
     dt = system.dtype if dtype is None else np.dtype(dtype)
     times = np.asarray(times, dtype=float)
     cache = {} if cache is None else cache
@@ -208,9 +210,9 @@ def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None
     T = np.repeat(system.torque_T0[None].astype(dt), n_t, axis=0)
     for i, prof in enumerate(system.torque_prof):
         T[:, i] *= tab(prof)[0]
-    return tuple(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T))
+    return TimeTable(*(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T)))
 
 
-def table_at(table: tuple, k: int) -> tuple:
+def table_at(table: TimeTable, k: int) -> TimeArrays:
     """The time arrays of entry ``k`` of a :func:`time_table`."""
-    return tuple(x[k] for x in table)
+    return TimeArrays(*(x[k] for x in table))

@@ -10,8 +10,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compile.system import System
+from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
+from ..kernels.assemble import add_residual
+from ..kernels.joints import load_residual
 from ..model.model import Beam, RigidBody
 
 
@@ -173,10 +175,6 @@ class Result:
 
 def energy(res: Result) -> dict:
     """Kinetic, strain and gravitational energy, damping dissipation and external work."""
-    from ..compile.system import kernel_arrays, time_table
-    from ..kernels.assemble import add_residual
-    from ..kernels.joints import load_residual
-
     s = res.system
     S = kernel_arrays(s)
     n, n_dof = s.n, s.n_dof
@@ -206,8 +204,8 @@ def energy(res: Result) -> dict:
         power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
         # external power: -Q_ext . v from the load kernel alone
         Rl = np.zeros(n, dtype=s.dtype)
-        load_residual(q, 1.0, F, s.load_dofs, np.ascontiguousarray(s.load_u0), T, s.torque_dofs,
-                      np.arange(s.load_dofs.shape[0]), np.arange(s.torque_dofs.shape[0]), Rl)
+        load_residual(S, q, 1.0, F, T, np.arange(s.load_dofs.shape[0]),
+                      np.arange(s.torque_dofs.shape[0]), Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
         # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
         for b in range(s.body_ref.shape[0]):

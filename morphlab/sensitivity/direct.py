@@ -22,13 +22,13 @@ from ..compile import System, compile_model
 from ..compile.system import kernel_arrays, time_table
 from ..errors import SensitivityError
 from ..kernels.direct import (
-    PERTURBED,
     block_recursion,
     csc_residual,
     explicit_block,
     state_loads,
     update_sensitivities,
 )
+from ..kernels.system import DESIGN_FIELDS, DesignArrays
 from ..results.result import Result
 from ..solve.linalg import DenseLU, SparseLU, no_sparse_arrays
 from ..solve.stepper import Settings
@@ -133,14 +133,17 @@ def _variable_parts(sys0: System, S0: tuple, Si: tuple, tab0: tuple, tabi: tuple
     design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must evaluate
     (:mod:`morphlab.kernels.direct`). A changed element brings its body and its coordinates."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
-    damp = _changed(Si[3], S0[3])
-    elem = (_changed(Si[11], S0[11]) | _changed(Si[12], S0[12]) | _changed(Si[13], S0[13])
+    def changed(name):
+        return _changed(getattr(Si, name), getattr(S0, name))
+
+    damp = changed("body_damp")
+    elem = (changed("elem_M") | changed("elem_St") | changed("elem_K")
             | damp[sys0.elem_body]) if n_elem else np.zeros(0, bool)
-    flex = _changed(Si[6], S0[6]) | _changed(Si[7], S0[7]) | _changed(Si[8], S0[8])
+    flex = changed("flex_IS") | changed("flex_I0S") | changed("flex_I0IS")
     fdof = sys0.elem_fdof[elem]
     flex[fdof[fdof >= 0]] = True
-    body = _changed(Si[2], S0[2]) | damp
-    if np.any(Si[0] != S0[0]):  # gravity acts on every body and every coordinate
+    body = changed("body_scal") | damp
+    if np.any(Si.gravity != S0.gravity):  # gravity acts on every body and every coordinate
         body[:] = True
         flex[:] = True
     for b in range(n_body):
@@ -150,10 +153,10 @@ def _variable_parts(sys0: System, S0: tuple, Si: tuple, tab0: tuple, tabi: tuple
             flex[lo:hi] = True
     body[sys0.elem_body[elem]] = True
     # time tables (n_t, ...): a row changes if it changes at any time
-    rows = (_changed(Si[16], S0[16]) | _changed(tabi[0], tab0[0], 1)
-            | _changed(tabi[1], tab0[1], 1) | _changed(tabi[2], tab0[2], 1))
-    loads = _changed(Si[18], S0[18]) | _changed(tabi[3], tab0[3], 1)
-    torques = _changed(tabi[4], tab0[4], 1)
+    rows = (changed("con_u0") | _changed(tabi.C, tab0.C, 1) | _changed(tabi.CD, tab0.CD, 1)
+            | _changed(tabi.CDD, tab0.CDD, 1))
+    loads = changed("load_u0") | _changed(tabi.F, tab0.F, 1)
+    torques = _changed(tabi.T, tab0.T, 1)
     return tuple(np.flatnonzero(m).astype(np.int64)
                  for m in (body, elem, flex, rows, loads, torques))
 
@@ -234,7 +237,8 @@ def _pseudo_load_data(sys0, settings, names, perturbed_cs, build, p0, steps, met
     dt_ = np.complex128 if method == "direct" else np.float64
     S_nom = kernel_arrays(sys0, dt_)  # integer tables shared with the primal's
     S_all = [kernel_arrays(s, dt_) for s in psys]
-    P = tuple(np.ascontiguousarray(np.stack([Sk[k] for Sk in S_all])) for k in PERTURBED)
+    P = DesignArrays(*(np.ascontiguousarray(np.stack([getattr(Sk, k) for Sk in S_all]))
+                       for k in DESIGN_FIELDS))
     shared: dict = {}
     tab0 = time_table(sys0, times, dt_, cache=shared)
     tables = [time_table(s, times, dt_, cache=shared) for s in psys]

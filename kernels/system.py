@@ -1,0 +1,142 @@
+"""The arrays every whole-system kernel reads, as named tuples.
+
+A compiled model reaches the kernels as one :class:`SystemArrays` (built by
+``morphlab.compile.kernel_arrays``), read by field name: ``S.elem_M``, ``S.con_dofs``. Its
+fields come in three groups:
+
+* the **design data** (float64, or complex128 for a complex-step perturbation): everything a
+  design variable can change — gravity, body invariants and damping, flexible invariants,
+  element matrices, the body-frame points of joints and loads. :data:`DESIGN_FIELDS` lists
+  them once; a sensitivity run stacks them over its design variables in a
+  :class:`DesignArrays` and evaluates the residual of design ``i`` on
+  :func:`with_design` ``(S, P, i)``;
+* the **topology** (int64): DOF numbers of bodies, flexible coordinates, elements, constraint
+  rows and loads;
+* the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
+  (``-1``: skipped).
+
+Array shapes (``morphlab.compile`` fills them; ``docs/theory.md`` §2-§4 the formulation):
+
+========== ==================== =============================================================
+field      shape                meaning
+========== ==================== =============================================================
+gravity    (2,)                 gravitational acceleration
+body_scal  (n_body, 4)          ``m, I_u_x, I_u_y, I_00`` of each body
+body_damp  (n_body,)            stiffness-proportional damping ``beta_d`` of each body
+flex_IS    (n_flex, 2)          ``I_S`` of each flexible coordinate
+flex_I0S   (n_flex,)            ``I_0S``
+flex_I0IS  (n_flex,)            ``I_0ĨS``
+elem_M     (n_elem, 6, 6)       element ``M_ff``
+elem_St    (n_elem, 6, 6)       element ``S̃``
+elem_K     (n_elem, 6, 6)       element stiffness
+con_u0     (n_con, 2, 2)        body-frame point of each side of each constraint row
+load_u0    (n_load, 2)          body-frame point of each point load
+body_ref   (n_body, 3)          DOFs ``R_x, R_y, theta`` of each body
+flex_off   (n_body + 1,)        each body's range of flexible coordinates
+flex_dof   (n_flex,)            DOF of each flexible coordinate
+elem_body  (n_elem,)            body of each element
+elem_fdof  (n_elem, 6)          flexible coordinate of each element DOF (``-1``: removed)
+con_kind   (n_con,)             row kind (:data:`morphlab.kernels.joints.ROW_X`, ...)
+con_dofs   (n_con, 2, 6)        DOFs ``R_x, R_y, theta, u, v, phi`` of each side of a row
+load_dofs  (n_load, 6)          the same for the point of each point load
+torque_dofs (n_torque, 2)       DOF of the body angle and of a nodal rotation (``-1``)
+border_*   ...                  positions of the body border entries (``ffrf.body_jacobian``)
+elem_map   (n_elem, 6, 6)       positions of the element entries
+con_map_*  ...                  positions of the constraint row, column and Hessian entries
+load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
+========== ==================== =============================================================
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class SystemArrays(NamedTuple):
+    """Everything a whole-system kernel reads (module docstring)."""
+
+    # design data
+    gravity: np.ndarray
+    body_scal: np.ndarray
+    body_damp: np.ndarray
+    flex_IS: np.ndarray
+    flex_I0S: np.ndarray
+    flex_I0IS: np.ndarray
+    elem_M: np.ndarray
+    elem_St: np.ndarray
+    elem_K: np.ndarray
+    con_u0: np.ndarray
+    load_u0: np.ndarray
+    # topology
+    body_ref: np.ndarray
+    flex_off: np.ndarray
+    flex_dof: np.ndarray
+    elem_body: np.ndarray
+    elem_fdof: np.ndarray
+    con_kind: np.ndarray
+    con_dofs: np.ndarray
+    load_dofs: np.ndarray
+    torque_dofs: np.ndarray
+    # pattern
+    border_off: np.ndarray
+    border_map: np.ndarray
+    elem_map: np.ndarray
+    con_map_row: np.ndarray
+    con_map_col: np.ndarray
+    con_map_H: np.ndarray
+    load_map: np.ndarray
+
+
+class DesignArrays(NamedTuple):
+    """The design data of :class:`SystemArrays` for several designs: each field stacked
+    over the designs (leading axis n_x)."""
+
+    gravity: np.ndarray
+    body_scal: np.ndarray
+    body_damp: np.ndarray
+    flex_IS: np.ndarray
+    flex_I0S: np.ndarray
+    flex_I0IS: np.ndarray
+    elem_M: np.ndarray
+    elem_St: np.ndarray
+    elem_K: np.ndarray
+    con_u0: np.ndarray
+    load_u0: np.ndarray
+
+
+#: The fields of :class:`SystemArrays` a design variable can change (the floating-point ones).
+DESIGN_FIELDS = DesignArrays._fields
+
+
+class Parts(NamedTuple):
+    """What a residual evaluation covers: index arrays of the bodies, elements, constraint
+    rows, point loads and torques, and a mask over the flexible coordinates. The residual
+    covers everything; a sensitivity pseudo-load only what one design variable changes."""
+
+    bodies: np.ndarray
+    elements: np.ndarray
+    flex: np.ndarray
+    rows: np.ndarray
+    loads: np.ndarray
+    torques: np.ndarray
+
+
+@njit(cache=True)
+def all_parts(S):
+    """:class:`Parts` covering the whole system."""
+    return Parts(np.arange(S.body_ref.shape[0]), np.arange(S.elem_fdof.shape[0]),
+                 np.ones(S.flex_dof.shape[0], dtype=np.bool_), np.arange(S.con_kind.shape[0]),
+                 np.arange(S.load_dofs.shape[0]), np.arange(S.torque_dofs.shape[0]))
+
+
+@njit(cache=True)
+def with_design(S, P, i):
+    """``S`` with its design data replaced by design ``i`` of the stacked ``P``
+    (:class:`DesignArrays`)."""
+    return SystemArrays(P.gravity[i], P.body_scal[i], P.body_damp[i], P.flex_IS[i],
+                        P.flex_I0S[i], P.flex_I0IS[i], P.elem_M[i], P.elem_St[i], P.elem_K[i],
+                        P.con_u0[i], P.load_u0[i], S.body_ref, S.flex_off, S.flex_dof,
+                        S.elem_body, S.elem_fdof, S.con_kind, S.con_dofs, S.load_dofs,
+                        S.torque_dofs, S.border_off, S.border_map, S.elem_map, S.con_map_row,
+                        S.con_map_col, S.con_map_H, S.load_map)
