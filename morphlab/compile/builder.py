@@ -1,0 +1,189 @@
+"""What compiling a model accumulates, and the registry of compile functions per item kind.
+
+:func:`morphlab.compile.compile_model` hands every body, joint and load of a model to the
+function registered for its class (:func:`compiles`); that function adds the item's DOFs, body
+data, elements, constraint rows or loads to a :class:`Builder`. A new kind of body, joint or
+load is one model class, one compile function registered here and, where it adds new physics,
+one kernel.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..errors import ModelError
+from ..model.model import Body, Ground
+from ..model.profiles import Profile
+from .system import BodyInfo
+
+_COMPILERS: dict[type, Callable] = {}
+
+
+def compiles(kind: type) -> Callable:
+    """Register the decorated ``f(item, builder)`` as the compile function of ``kind``."""
+
+    def register(fn: Callable) -> Callable:
+        _COMPILERS[kind] = fn
+        return fn
+
+    return register
+
+
+def compile_item(item, builder: Builder) -> None:
+    """Add ``item`` to ``builder`` with the function registered for its class (or a base)."""
+    for cls in type(item).__mro__:
+        fn = _COMPILERS.get(cls)
+        if fn is not None:
+            fn(item, builder)
+            return
+    known = ", ".join(sorted(k.__name__ for k in _COMPILERS))
+    name = getattr(item, "name", "")
+    raise ModelError(f"{type(item).__name__} {name!r}: no compile function for this kind of "
+                     f"item (known kinds: {known})")
+
+
+class Builder:
+    """DOF numbering and the arrays of a System, filled item by item.
+
+    Attributes (lists until :meth:`arrays`; see :class:`morphlab.kernels.system.SystemArrays`
+    for the meaning of each): ``dof_names``, ``q0``, ``v0``; per body ``body_ref``,
+    ``body_scal``, ``body_damp``, ``flex_off``; per flexible coordinate ``flex_dof``,
+    ``flex_IS``, ``flex_I0S``, ``flex_I0IS``; per element ``elem_*``; per constraint row
+    ``con_*`` (with its name, joint and the profile of a driven row); per point load
+    ``load_*``; per torque ``torque_*``; ``bodies`` (name -> :class:`BodyInfo`) and
+    ``locate`` (name -> the function that finds a material point of the body, set by the
+    body's compile function; :meth:`point`).
+    """
+
+    def __init__(self, model, dtype: np.dtype):
+        self.model = model
+        self.dtype = dtype
+        self.bodies: dict[str, BodyInfo] = {}
+        self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)
+        self.dof_names: list[str] = []
+        self.q0: list = []
+        self.v0: list = []
+        self.body_ref: list = []
+        self.body_scal: list = []
+        self.body_damp: list = []
+        self.flex_off = [0]
+        self.flex_dof: list = []
+        self.flex = {"IS": [], "I0S": [], "I0IS": []}
+        self.elem = {k: [] for k in ("body", "fdof", "dofs", "M", "St", "K", "B")}
+        self.n_elem = 0
+        self.con = {k: [] for k in ("kind", "dofs", "u0", "c0", "names", "joint")}
+        self.con_drive: list = []
+        self.load = {k: [] for k in ("dofs", "u0", "F0", "prof")}
+        self.torque = {k: [] for k in ("dofs", "T0", "prof")}
+
+    # ---- DOFs and bodies
+    def add_dofs(self, names: list[str], q0, v0) -> np.ndarray:
+        """New DOFs with their initial values; returns their global numbers."""
+        first = len(self.dof_names)
+        self.dof_names += names
+        self.q0 += list(q0)
+        self.v0 += list(v0)
+        return np.arange(first, first + len(names), dtype=np.int64)
+
+    def add_body(self, name: str, q0, v0, scal, damping) -> tuple[int, np.ndarray]:
+        """A body frame (reference coordinates ``x, y, theta`` at ``q0`` (3,) moving with
+        ``v0``) with its invariants ``scal = (m, I_u_x, I_u_y, I_00)`` and damping; returns
+        its index and the DOFs of its frame."""
+        ref = self.add_dofs([f"{name}.x", f"{name}.y", f"{name}.theta"], q0, v0)
+        self.body_ref.append(ref)
+        self.body_scal.append(list(scal))
+        self.body_damp.append(damping)
+        return len(self.body_ref) - 1, ref
+
+    def close_body(self, flex_dofs, IS, I0S, I0IS) -> int:
+        """The flexible coordinates of the body added last (its global DOFs and invariants,
+        possibly none); returns the index of its first flexible coordinate."""
+        first = self.flex_off[-1]
+        self.flex_dof += list(flex_dofs)
+        self.flex_off.append(first + len(flex_dofs))
+        for key, value in (("IS", IS), ("I0S", I0S), ("I0IS", I0IS)):
+            if value is not None:
+                self.flex[key].append(value)
+        return first
+
+    def add_elements(self, body: int, fdof, dofs, M, St, K, B) -> slice:
+        """Elements of body ``body`` (its flexible coordinate and global DOF of each element
+        DOF, -1 where removed, and the element matrices); returns their rows."""
+        n = fdof.shape[0]
+        for key, value in (("body", np.full(n, body, dtype=np.int64)), ("fdof", fdof),
+                           ("dofs", dofs), ("M", M), ("St", St), ("K", K), ("B", B)):
+            self.elem[key].append(value)
+        self.n_elem += n
+        return slice(self.n_elem - n, self.n_elem)
+
+    # ---- points, constraint rows and loads
+    def point(self, body: Body, at):
+        """``(dofs (6,), u0 (2,), angle0)`` of the material point of ``body`` at the global
+        point ``at``: the DOFs ``R_x, R_y, theta, u, v, phi`` (-1 where absent; all -1 for the
+        ground), its position in the body frame and the frame's initial angle."""
+        if isinstance(body, Ground):
+            return -np.ones(6, dtype=np.int64), np.zeros(2, dtype=self.dtype), 0.0
+        return self.locate[body.name](at)
+
+    def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None):
+        """A constraint row ``g(q) - c(t) = 0`` of ``kind`` between the points ``pa`` and
+        ``pb`` (:meth:`point`), ``c = c0`` (+ ``profile(t)`` for a driven row)."""
+        for key, value in (("kind", kind), ("dofs", np.stack([pa[0], pb[0]])),
+                           ("u0", np.stack([pa[1], pb[1]])), ("c0", c0),
+                           ("names", f"{joint.name}.{label}"), ("joint", joint.name)):
+            self.con[key].append(value)
+        if profile is not None:
+            self.con_drive.append((len(self.con["kind"]) - 1, profile))
+
+    def add_load(self, point, force, profile: Profile) -> None:
+        """A point force ``force * profile(t)`` (global direction) at ``point``."""
+        dofs, u0, _ = point
+        for key, value in (("dofs", dofs), ("u0", u0), ("F0", np.asarray(force)),
+                           ("prof", profile)):
+            self.load[key].append(value)
+
+    def add_torque(self, dofs, magnitude, profile: Profile) -> None:
+        """A torque ``magnitude * profile(t)`` on the DOFs ``dofs`` (2,): a body angle and a
+        nodal rotation (-1 if none)."""
+        for key, value in (("dofs", dofs), ("T0", magnitude), ("prof", profile)):
+            self.torque[key].append(value)
+
+    # ---- the result
+    def arrays(self) -> dict:
+        """The System fields accumulated (arrays of the right dtype and shape)."""
+        dt = self.dtype
+
+        def cat(lst, shape, dtype_=dt):
+            return np.ascontiguousarray(np.concatenate(lst) if lst else np.zeros(shape, dtype_),
+                                        dtype=dtype_)
+
+        def arr(lst, shape, dtype_=dt):
+            return np.array(lst, dtype=dtype_).reshape(shape)
+
+        i64 = np.int64
+        e, c, ld, tq = self.elem, self.con, self.load, self.torque
+        return dict(
+            n_dof=len(self.dof_names), n_con=len(c["kind"]),
+            q0=np.array(self.q0, dtype=dt), v0=np.array(self.v0, dtype=dt),
+            gravity=np.asarray(self.model.gravity, dtype=dt),
+            body_ref=arr(self.body_ref, (-1, 3), i64), body_scal=arr(self.body_scal, (-1, 4)),
+            body_damp=np.array(self.body_damp, dtype=dt),
+            flex_off=np.array(self.flex_off, dtype=i64), flex_dof=np.array(self.flex_dof, i64),
+            flex_IS=cat(self.flex["IS"], (0, 2)), flex_I0S=cat(self.flex["I0S"], (0,)),
+            flex_I0IS=cat(self.flex["I0IS"], (0,)),
+            elem_body=cat(e["body"], (0,), i64), elem_fdof=cat(e["fdof"], (0, 6), i64),
+            elem_dofs=cat(e["dofs"], (0, 6), i64), elem_M=cat(e["M"], (0, 6, 6)),
+            elem_St=cat(e["St"], (0, 6, 6)), elem_K=cat(e["K"], (0, 6, 6)),
+            elem_B=cat(e["B"], (0, 2, 2, 6)),
+            con_kind=np.array(c["kind"], dtype=i64), con_dofs=arr(c["dofs"], (-1, 2, 6), i64),
+            con_u0=arr(c["u0"], (-1, 2, 2)), con_c0=np.array(c["c0"], dtype=dt),
+            con_drive=self.con_drive,
+            load_dofs=arr(ld["dofs"], (-1, 6), i64), load_u0=arr(ld["u0"], (-1, 2)),
+            load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"],
+            torque_dofs=arr(tq["dofs"], (-1, 2), i64), torque_T0=np.array(tq["T0"], dtype=dt),
+            torque_prof=tq["prof"],
+            bodies=self.bodies, dof_names=self.dof_names, con_names=c["names"],
+            con_joint=c["joint"],
+        )
