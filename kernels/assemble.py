@@ -73,7 +73,7 @@ def _step_state(z, qh, vh, bh2, gh, scale, n_dof):
 @njit(cache=True)
 def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist, R):
     """``R = R_hist +`` the new level's share (weights ``w``) at the step unknowns ``z``: the
-    Newton residual in one call (``morphlab.solver.Stepper.residual``). Returns ``|R|²`` (NaN
+    Newton residual in one call (``morphlab.solve.newton.StepProblem``). Returns ``|R|²`` (NaN
     or Inf when an entry is not finite)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, n_dof)
     # an element loop, not ``R[:] = R_hist``: Numba compiles a formatted shape-mismatch error

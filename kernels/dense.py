@@ -1,8 +1,8 @@
 """Dense LU with partial pivoting for small Newton matrices.
 
-SuperLU spends ~20 us per factorization in set-up for matrices of a few dozen unknowns,
-where the whole elimination is a few thousand flops; below ``morphlab.factorization.DENSE_MAX``
-unknowns the step matrix is scattered into a dense array and factored here. Row-pivoted
+For matrices of a few dozen unknowns a sparse factorization's set-up costs more than the
+whole elimination; up to ``Settings.dense_max`` unknowns the step matrix is scattered into a
+dense array and factored here. Row-pivoted
 Gaussian elimination (``P A = L U``, the pivot the entry of largest magnitude in its column:
 Golub & Van Loan, Matrix Computations, 4th ed., alg. 3.4.1), float64 or complex128.
 """
@@ -79,3 +79,34 @@ def lu_solve(LU, piv, b):
         inv = 1.0 / LU[i, i]
         for c in range(m):
             b[i, c] *= inv
+
+
+@njit(cache=True)
+def lu_solve_transposed(LU, piv, b):
+    """Solve ``A^T x = b`` for ``b`` (n, m) in place with the factors of :func:`lu_factor`:
+    ``A = P^T L U``, so ``U^T y = b``, ``L^T w = y`` and ``x = P^T w`` (the row interchanges
+    undone in reverse order)."""
+    n = LU.shape[0]
+    m = b.shape[1]
+    for i in range(n):
+        for k in range(i):
+            uki = LU[k, i]
+            if uki != 0.0:
+                for c in range(m):
+                    b[i, c] -= uki * b[k, c]
+        inv = 1.0 / LU[i, i]
+        for c in range(m):
+            b[i, c] *= inv
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            lki = LU[k, i]
+            if lki != 0.0:
+                for c in range(m):
+                    b[i, c] -= lki * b[k, c]
+    for k in range(n - 1, -1, -1):
+        p = piv[k]
+        if p != k:
+            for c in range(m):
+                t = b[k, c]
+                b[k, c] = b[p, c]
+                b[p, c] = t

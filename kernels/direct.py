@@ -23,21 +23,16 @@ parts of a block of steps in one call (:func:`explicit_block`); with dense facto
 recursion over the block is one call as well (:func:`block_recursion`, for dense factors and
 for sparse ones of one row order); for SuperLU's factors the solves are made from Python.
 
-The step coefficients travel as two small arrays: ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)``
-and ``upd = (ga, gan, ggn)`` (``morphlab.integrator.StepCoefficients``), so that::
-
-    q_{n+1} = q_n + h v_n + cqa a_n + cqg g_n + bh2 a_{n+1}
-    v_{n+1} = v_n + cva a_n + cvg g_n + gh a_{n+1}
-    g_{n+1} = ga a_{n+1} + gan a_n + ggn g_n
-
-the same linear update the primal applies (``morphlab.integrator.newmark_predict`` /
-``newmark_update``), here on sensitivity columns.
+The step coefficients travel as the two arrays ``pc`` and ``upd`` of
+:mod:`morphlab.kernels.newmark`, whose predictor and update the primal applies to its state and
+these kernels to every sensitivity column.
 """
 
 import numpy as np
 from numba import njit
 
 from .assemble import add_residual_parts, fill_matrix
+from .newmark import predict, update
 from .newton import solve_factored
 from .system import Parts, with_design
 
@@ -93,19 +88,15 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F[k_new], D0, Dq, Dv, Z)
     for p in range(J.shape[0]):
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
-    h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
     # each history may keep only its last levels (see update_sensitivities)
     kq, kv, ka, kg, kl = (k % DQ.shape[1], k % DV.shape[1], k % DA.shape[1], k % DG.shape[1],
                           k % DLAM.shape[1])
-    dqh = np.empty((n_dof, n_x))
-    dvh = np.empty((n_dof, n_x))
+    dqh = np.empty((n_x, n_dof))
+    dvh = np.empty((n_x, n_dof))
     for i in range(n_x):
-        for r in range(n_dof):
-            dqh[r, i] = (DQ[i, kq, r] + h * DV[i, kv, r] + cqa * DA[i, ka, r]
-                         + cqg * DG[i, kg, r])
-            dvh[r, i] = DV[i, kv, r] + cva * DA[i, ka, r] + cvg * DG[i, kg, r]
-    _subtract_product(Dq, indices, indptr, n_dof, dqh, rhs)
-    _subtract_product(Dv, indices, indptr, n_dof, dvh, rhs)
+        predict(pc, DQ[i, kq], DV[i, kv], DA[i, ka], DG[i, kg], dqh[i], dvh[i])
+    _subtract_product(Dq, indices, indptr, n_dof, dqh.T, rhs)
+    _subtract_product(Dv, indices, indptr, n_dof, dvh.T, rhs)
     if has_old:
         D0, Dq, Dv = mats[3], mats[4], mats[5]
         split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F[k], D0, Dq, Dv, Z)
@@ -234,7 +225,7 @@ def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale
     with one row order (``Lx``, ``Ux``, ``Ud``: (K, ...) and their ``pattern``); the other
     kind's stacks hold K empty factors (e.g. ``LU`` (K, 0, 0)), so step ``j``'s factor is
     :func:`morphlab.kernels.newton.solve_factored`'s ``LU[j], piv[j], Lx[j], ...``. Per step
-    ``j``, as ``morphlab.sensitivity_direct._DirectPass.flush`` does from Python for other
+    ``j``, as ``morphlab.sensitivity.direct._DirectPass`` does from Python for other
     factors: the state part (:func:`state_loads`) subtracted from ``E[j]``, which holds the
     explicit part; the solve with the step's factors; ``n_refine`` refinement sweeps against
     the exact converged matrix where ``refine[j]``, writing the relative residual to
@@ -276,20 +267,17 @@ def update_sensitivities(DQ, DV, DA, DG, DLAM, n, x, scale, n_dof, pc, upd):
             for r in range(n_con):
                 DLAM[i, 0, r] = x[n_dof + r, i] * scale
         return
-    h, cqa, cqg, cva, cvg, bh2, gh = pc[0], pc[1], pc[2], pc[3], pc[4], pc[5], pc[6]
-    ga, gan, ggn = upd[0], upd[1], upd[2]
     m = n - 1
     qn, qm, vn, vm, an, am = n % nq, m % nq, n % nv, m % nv, n % na, m % na
     gn, gm, ln = n % n_g, m % n_g, n % nl
+    qh = np.empty(n_dof)
+    vh = np.empty(n_dof)
     for i in range(n_x):
+        da = x[:n_dof, i]
+        predict(pc, DQ[i, qm], DV[i, vm], DA[i, am], DG[i, gm], qh, vh)
+        update(pc, upd, qh, vh, da, DA[i, am], DG[i, gm], DQ[i, qn], DV[i, vn], DG[i, gn])
         for r in range(n_dof):
-            da = x[r, i]
-            a0 = DA[i, am, r]
-            g0 = DG[i, gm, r]
-            DQ[i, qn, r] = DQ[i, qm, r] + h * DV[i, vm, r] + cqa * a0 + cqg * g0 + bh2 * da
-            DV[i, vn, r] = DV[i, vm, r] + cva * a0 + cvg * g0 + gh * da
-            DG[i, gn, r] = ga * da + gan * a0 + ggn * g0
-            DA[i, an, r] = da
+            DA[i, an, r] = da[r]
         for r in range(n_con):
             DLAM[i, ln, r] = x[n_dof + r, i] * scale
 

@@ -1,10 +1,11 @@
 """The Newton loop of one time step in one compiled call, on either kind of step-matrix factor.
 
-``morphlab.solver.Stepper.newton`` iterates from Python with five calls per iteration
-(residual, matrix, factorization, solve, correction). Once the factorization of a run has
-settled (:class:`morphlab.factorization.StepFactorization`: the dense LU of a small matrix, or
-the compiled sparse refactorization with a row order SuperLU chose) the same kernels, in the
-same order and with the same arithmetic, run here in one call: bitwise the same iterates.
+:func:`morphlab.solve.newton.newton` iterates from Python with five calls per iteration
+(residual, matrix, factorization, solve, correction) until the factorization of a run has
+settled (:class:`morphlab.solve.linalg.StepFactorization`: the dense LU of a small matrix, or
+the compiled sparse refactorization with a row order SuperLU chose); from then on the same
+kernels, in the same order and with the same arithmetic, run here in one call: bitwise the
+same iterates.
 
 A factor is one of two kinds, told apart by the size of the dense arrays:
 
@@ -22,9 +23,10 @@ import numpy as np
 from numba import njit
 
 from .assemble import apply_correction, step_matrix, step_residual
-from .dense import csc_to_dense, lu_factor, lu_solve
+from .dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
 from .sparse_lu import refactor
 from .sparse_lu import solve as sparse_solve
+from .sparse_lu import solve_transposed as sparse_solve_transposed
 
 # Status codes of :func:`newton_loop`
 CONVERGED, NONFINITE_RESIDUAL, SINGULAR, NONFINITE_CORRECTION, NOT_CONVERGED, PIVOT_REFUSED = (
@@ -59,6 +61,17 @@ def solve_factored(b, work, LU, piv, Lx, Ux, Ud, pattern):
 
 
 @njit(cache=True)
+def solve_factored_transposed(b, work, LU, piv, Lx, Ux, Ud, pattern):
+    """:func:`solve_factored` for the transposed matrix (the adjoint sweep)."""
+    if LU.shape[0] > 0:
+        lu_solve_transposed(LU, piv, b)
+    else:
+        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
+        sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
+                                col_scale, b, b, work)
+
+
+@njit(cache=True)
 def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
                 indices, indptr, linear, length, tol, max_iter, polish, R, data, LU, piv, Lx,
                 Ux, Ud, order, pattern, tau, hist):
@@ -69,7 +82,7 @@ def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof
     :func:`~morphlab.kernels.assemble.apply_correction` until the position correction
     ``bh2 |dz_a|_max / length`` is at most ``tol`` (``linear``: the initial solve, converged
     after one iteration), then ``polish`` more (complex-step reference runs). The kernels, in
-    the order, of the step-by-step loop of ``morphlab.solver.Stepper.newton`` (which raises
+    the order, of the step-by-step loop of ``morphlab.solve.newton.newton`` (which raises
     the errors): the same arithmetic, bitwise the same iterates.
 
     Returns ``(z, iterations, status, bad)``: ``iterations`` up to convergence (the polish ones

@@ -160,3 +160,35 @@ def solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b,
     for k in range(n):
         for s in range(m):
             x[col_to[k], s] = work[k, s] * col_scale[k]
+
+
+@njit(cache=True)
+def solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b, x,
+                     work):
+    """Solve the transposed system ``A^T x = b`` with the factors of :func:`refactor`, ``b``
+    (n, m) into ``x`` (n, m) through the scratch ``work`` (n, m). :func:`solve` applies
+    ``A^-1 = C (L U)^-1 R`` (``R``: rows picked by ``row_from`` and scaled, ``C``: scaled and
+    scattered to ``col_to``), so ``A^-T = R^T U^-T L^-T C^T``."""
+    n = Lp.shape[0] - 1
+    m = b.shape[1]
+    for k in range(n):
+        for s in range(m):
+            work[k, s] = b[col_to[k], s] * col_scale[k]
+    for j in range(n):  # U^T y = work: forward, column j of U is row j of U^T
+        for p in range(Up[j], Up[j + 1]):
+            i = Ui[p]
+            uij = Ux[p]
+            for s in range(m):
+                work[j, s] -= uij * work[i, s]
+        inv = 1.0 / Ud[j]
+        for s in range(m):
+            work[j, s] *= inv
+    for j in range(n - 1, -1, -1):  # L^T z = y: backward, unit diagonal
+        for p in range(Lp[j], Lp[j + 1]):
+            i = Li[p]
+            lij = Lx[p]
+            for s in range(m):
+                work[j, s] -= lij * work[i, s]
+    for k in range(n):
+        for s in range(m):
+            x[row_from[k], s] = work[k, s] * row_scale[k]

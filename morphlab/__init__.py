@@ -23,8 +23,8 @@ from .results import responses
 from .results.result import Result
 from .sensitivity.api import SensitivityResult, sensitivities
 from .solve.scheme import GeneralizedAlpha
+from .solve.settings import Settings, State
 from .solve.statics import static
-from .solve.stepper import Settings, State
 from .solve.timeloop import simulate
 from .warmup import warmup
 

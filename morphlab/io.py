@@ -3,7 +3,7 @@
 Functions
 ---------
 ``save(result, path)`` / ``load(path)``
-    A :class:`~morphlab.results.Result` (a simulation or a static equilibrium path) with
+    A :class:`~morphlab.results.result.Result` (a simulation or a static equilibrium path) with
     everything its accessors need: a loaded result gives bitwise the same ``t, q, v, a, lam``
     and the same ``node_positions``, ``stress``, ``point_positions``, ``reference``, ``dof``,
     ``summary`` and (when every time profile of the model could be stored) ``energy``.
@@ -392,12 +392,12 @@ def _rebuild_model(meta: dict, arrays: dict) -> Model:
 
 
 def save(result, path) -> None:
-    """Save a :class:`~morphlab.results.Result` to ``path`` (``.npz``, atomic write).
+    """Save a :class:`~morphlab.results.result.Result` to ``path`` (``.npz``, atomic write).
 
     Parameters
     ----------
     result : Result
-        From :func:`~morphlab.timeloop.simulate` or :func:`~morphlab.statics.static` (also the
+        From :func:`~morphlab.solve.timeloop.simulate` or :func:`~morphlab.solve.statics.static` (also the
         partial ``error.result`` of a failed run).
     path : str or os.PathLike
         Destination, used as given (``.npz`` is customary).
@@ -479,7 +479,7 @@ def save(result, path) -> None:
 
 
 def load(path):
-    """Load a :class:`~morphlab.results.Result` saved by :func:`save`.
+    """Load a :class:`~morphlab.results.result.Result` saved by :func:`save`.
 
     Returns
     -------

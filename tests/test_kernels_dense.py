@@ -3,10 +3,9 @@ against each other (the compiled Newton loop on both: ``test_kernels_newton``)."
 
 import numpy as np
 import pytest
-from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve
+from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
 
 import morphlab as ml
-import morphlab.solve.linalg as factorization
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])
@@ -29,6 +28,12 @@ def test_lu_solves_like_numpy_with_pivoting(dtype):
     res = np.abs(A @ x - b).max() / (np.abs(A).max() * np.abs(x).max())
     assert res < 1e-14
     np.testing.assert_allclose(x, ref, rtol=1e-8)
+    # the transposed solve with the same factors (the adjoint sweep): A^T y = b
+    y = b.copy()
+    lu_solve_transposed(LU, piv, y)
+    res = np.abs(A.T @ y - b).max() / (np.abs(A).max() * np.abs(y).max())
+    assert res < 1e-14
+    np.testing.assert_allclose(y, np.linalg.solve(A.T, b), rtol=1e-8)
 
 
 def test_exactly_singular_matrix_is_reported():
@@ -61,14 +66,12 @@ def _four_bar():
     return m
 
 
-def test_dense_and_sparse_paths_give_the_same_run(monkeypatch):
+def test_dense_and_sparse_paths_give_the_same_run():
     """Both are backward-stable direct solvers of the same Newton systems: the runs agree to
     the Newton tolerance (1e-10 of the model size); measured 7e-15 mm on 40 steps. (29
-    unknowns: sparse by default, ``DENSE_MAX`` forces either.)"""
+    unknowns: sparse by default, ``dense_max`` forces either.)"""
     system = ml.compile_model(_four_bar())
-    monkeypatch.setattr(factorization, "DENSE_MAX", system.n)
-    dense = ml.simulate(system, t_end=0.04, dt=1e-3)
-    monkeypatch.setattr(factorization, "DENSE_MAX", 0)
-    sparse = ml.simulate(system, t_end=0.04, dt=1e-3)
+    dense = ml.simulate(system, t_end=0.04, dt=1e-3, dense_max=system.n)
+    sparse = ml.simulate(system, t_end=0.04, dt=1e-3, dense_max=0)
     np.testing.assert_array_equal(dense.newton_iterations, sparse.newton_iterations)
     assert np.abs(dense.q - sparse.q).max() < 1e-10 * system.length_scale

@@ -1,6 +1,6 @@
 """The direct-differentiation kernels against independent NumPy/SciPy evaluations.
 
-``update_sensitivities`` must apply the primal's Newmark update (``morphlab.integrator``) to
+``update_sensitivities`` must apply the primal's Newmark update (``morphlab.solve.scheme``) to
 sensitivity columns, and ``csc_residual`` must be ``b - A x`` for a CSC matrix; both are checked
 on random data for both schemes' coefficients (exact arithmetic up to round-off: 1e-14).
 The pseudo-loads themselves are verified end to end against whole-run complex step in

@@ -17,23 +17,11 @@ from morphlab.kernels.newton import (
 
 import morphlab as ml
 from morphlab.compile.system import table_at, time_table
-from morphlab.solve import linalg as factorization
-from morphlab.solve.stepper import Settings, Stepper
+from morphlab.solve import linalg, superlu
+from morphlab.solve.settings import Settings
+from morphlab.solve.stepper import Stepper
 
-TAU = factorization.SPLU_OPTIONS["diag_pivot_thresh"]
-
-
-def _factor_arrays(fac, n, dt):
-    """Fresh factor arrays of the compiled kernels for the factorization ``fac``, and the
-    matching Python factorization of values ``data``."""
-    if fac.dense:
-        order, pattern = factorization.no_sparse_arrays(dt)
-        none = np.zeros(0, dtype=dt)
-        return (np.empty((n, n), dtype=dt), np.empty(n, dtype=np.int64), none, none, none,
-                order, pattern)
-    p = fac.pivots
-    return (np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64), *p.empty_factors(),
-            p.order_arrays, p.solve_arrays)
+TAU = superlu.PIVOT_THRESHOLD
 
 
 def _one_iteration(S, z, qh, vh, args, ta, n_dof, R_hist, system, R, data, factors, length):
@@ -56,15 +44,15 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     a non-finite residual (no matrix) and on a factorization that fails (no solve: a singular
     dense matrix, a sparse pivot that fails the threshold). Taken at a converged step of the
     flexible four-bar with a perturbed iterate."""
-    monkeypatch.setattr(factorization, "DENSE_MAX", 1000 if kind == "dense" else 0)
+    dense_max = 1000 if kind == "dense" else 0
     system = ml.compile_model(flexible_mechanism())
-    settings = Settings(t_end=0.004, dt=1e-3)
-    res = ml.simulate(system, t_end=0.004, dt=1e-3)
-    stp = Stepper(system, settings, scale=res.scale)
+    settings = Settings(t_end=0.004, dt=1e-3, dense_max=dense_max)
+    res = ml.simulate(system, settings=settings)
+    stp = Stepper.dynamic(system, settings, scale=res.scale)
     coef = stp.step_coef
     n, n_dof, L = system.n, system.n_dof, system.length_scale
     dt = np.dtype(dtype)
-    S = ml.solve.stepper.kernel_arrays(system, dt)
+    S = ml.compile.kernel_arrays(system, dt)
     ta = table_at(time_table(system, res.t, dt), 3)
     rng = np.random.default_rng(2)
     z = np.concatenate([res.a[3], res.lam[3] / res.scale]).astype(dt)
@@ -72,8 +60,8 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     qh = (res.q[3] - coef.bh2 * res.a[3]).astype(dt)
     vh = (res.v[3] - coef.gh * res.a[3]).astype(dt)
     R_hist = np.zeros(n, dtype=dt)
-    args = (coef.bh2, coef.gh, stp.scale, coef.arrays[3], stp.b0, stp.b1)
-    fac = factorization.StepFactorization(system.indices, system.indptr, n, dt)
+    args = (coef.bh2, coef.gh, stp.scale, coef.arrays.w_new, stp.b0, stp.b1)
+    fac = linalg.StepFactorization(system.indices, system.indptr, n, dt, dense_max)
     data0 = np.empty(system.nnz, dtype=dt)
     step_matrix(S, z, qh, vh, *args, ta[3], data0)
     while not fac.settled:  # SuperLU chooses the orders on the first two matrices
@@ -85,7 +73,7 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
                               L)
 
     R1, data1 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
-    F1 = _factor_arrays(fac, n, dt)
+    F1 = fac.loop_arrays()
     z1, status1, bad1, (r1, err1) = iterate(S, qh, R1, data1, F1)
 
     R2, data2 = np.empty(n, dtype=dt), np.empty(system.nnz, dtype=dt)
@@ -93,9 +81,9 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     step_matrix(S, z, qh, vh, *args, ta[3], data2)
     lu = fac(data2)
     z2, big2, fin2 = apply_correction(z, lu.solve(-R2), n_dof)
-    factors = (lu.LU, lu.piv) if kind == "dense" else (lu.Lx, lu.Ux, lu.Ud)
-    mine = (F1[0], F1[1]) if kind == "dense" else F1[2:5]
-    assert isinstance(lu, factorization.DenseLU if kind == "dense" else factorization.SparseLU)
+    factors = lu.kernel_args()[:2] if kind == "dense" else lu.kernel_args()[2:5]
+    mine = F1[:2] if kind == "dense" else F1[2:5]
+    assert (lu.group == "dense") == (kind == "dense") and lu.group is not None
 
     assert (status1, bad1) == (CONVERGED, -1) and fin2
     assert r1 == np.sqrt(ssq2) and err1 == coef.bh2 * big2 / L
@@ -108,35 +96,34 @@ def test_compiled_iteration_is_the_step_by_step_sequence(monkeypatch, kind, dtyp
     qbad[0] = np.nan
     data3 = np.full(system.nnz, 7.0, dtype=dt)
     z3, status3, bad3, _ = iterate(S, qbad, np.empty(n, dtype=dt), data3,
-                                   _factor_arrays(fac, n, dt))
+                                   fac.loop_arrays())
     assert (status3, bad3) == (NONFINITE_RESIDUAL, -1) and z3 is z
     assert np.all(data3 == 7.0)
     # all masses, stiffnesses and joints scaled to zero: the factorization reports a column
     S0 = type(S)(*(x * 0 if x.dtype == dt else x for x in S))
     z4, status4, bad4, _ = iterate(S0, qh, np.empty(n, dtype=dt),
-                                   np.empty(system.nnz, dtype=dt), _factor_arrays(fac, n, dt))
+                                   np.empty(system.nnz, dtype=dt), fac.loop_arrays())
     assert status4 == (SINGULAR if kind == "dense" else PIVOT_REFUSED)
     assert bad4 >= 0 and z4 is z
     if kind == "sparse":  # the refactorization's work column is left clean for the next one
-        assert not np.any(fac.pivots.work)
+        assert not np.any(fac.row_order.work)
 
 
 def _runs(monkeypatch, system, **kw):
     """The same run with the compiled loop and with every iteration in Python; the number of
     row orders SuperLU chose in each."""
     orders = []
-    choose = factorization._NaturalFactor.__call__
+    choose = superlu.NaturalOrderLU.__call__
 
     def counted(self, data):
         orders[-1] += 1
         return choose(self, data)
 
-    monkeypatch.setattr(factorization._NaturalFactor, "__call__", counted)
+    monkeypatch.setattr(superlu.NaturalOrderLU, "__call__", counted)
     out = []
     for compiled in (True, False):
-        monkeypatch.setattr(Stepper, "compiled", compiled)
         orders.append(0)
-        out.append(ml.simulate(system, **kw))
+        out.append(ml.simulate(system, compiled_newton=compiled, **kw))
     return out, orders
 
 
@@ -158,9 +145,8 @@ def test_compiled_loop_gives_the_run_of_the_python_loop(monkeypatch):
 
 def test_compiled_dense_loop_gives_the_run_of_the_python_loop(monkeypatch):
     """The same on dense factors (the flexible four-bar, 35 unknowns, factored dense)."""
-    monkeypatch.setattr(factorization, "DENSE_MAX", 1000)
     system = ml.compile_model(flexible_mechanism())
-    (fast, slow), _ = _runs(monkeypatch, system, t_end=0.02, dt=1e-3)
+    (fast, slow), _ = _runs(monkeypatch, system, t_end=0.02, dt=1e-3, dense_max=1000)
     for name in ("q", "lam", "newton_iterations"):
         np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
     assert fast.n_factorizations == slow.n_factorizations

@@ -112,36 +112,39 @@ def test_a_pivot_below_the_threshold_is_reported():
     assert not np.any(work)  # clean after a failure too
 
 
-def test_step_factorization_renews_the_row_order_when_a_pivot_fails(monkeypatch):
+def test_step_factorization_renews_the_row_order_when_a_pivot_fails():
     """StepFactorization: SuperLU factors the first matrix (fill-reducing order) and the
     second (row order), the compiled refactorization every later one while the pivots pass the
     threshold; a matrix that makes a pivot fail goes back to SuperLU for a new row order,
     which the next matrix reuses. Every solution is exact to round-off."""
-    monkeypatch.setattr(factorization, "DENSE_MAX", 0)
     A = _saddle_point()
     n = A.shape[0]
     fac = factorization.StepFactorization(A.indices.astype(np.int64),
-                                          A.indptr.astype(np.int64), n, np.float64)
+                                          A.indptr.astype(np.int64), n, np.float64, dense_max=0)
     rng = np.random.default_rng(11)
     b = rng.normal(size=n)
     B = rng.normal(size=(n, 4)) + 1j * rng.normal(size=(n, 4))
 
-    def check(data, kind, orders):
+    def check(data, compiled, orders):
+        """``compiled``: the refactorization (a factor of a compiled group) or SuperLU's own;
+        ``solve`` and ``solve_transposed`` both exact to round-off."""
         lu = fac(data)
-        assert isinstance(lu, kind) and fac.n_orders == orders
+        assert (lu.group is not None) == compiled and fac.n_orders == orders
         Ad = sp.csc_matrix((data, A.indices, A.indptr), shape=(n, n)).toarray()
         np.testing.assert_allclose(lu.solve(b), np.linalg.solve(Ad, b), rtol=1e-9, atol=1e-12)
         # several right-hand sides, complex ones through a real factorization
         np.testing.assert_allclose(lu.solve(B), np.linalg.solve(Ad, B), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(lu.solve_transposed(B), np.linalg.solve(Ad.T, B), rtol=1e-9,
+                                   atol=1e-12)
 
-    superlu = factorization._PermutedLU
+    superlu, compiled = False, True
     check(A.data, superlu, 0)
     check(A.data * 1.01, superlu, 1)
-    check(A.data * 1.02, factorization.SparseLU, 1)  # a uniform scaling keeps every ratio
+    check(A.data * 1.02, compiled, 1)  # a uniform scaling keeps every ratio
     # make the first pivot tiny: column q[0] of A is factored first, its pivot is the entry
     # in the row that SuperLU's row order put first
     q = fac._order[0]
-    j0, i0 = q[0], q[np.argsort(fac._pivots.perm_r)[0]]
+    j0, i0 = q[0], q[np.argsort(fac.row_order.perm_r)[0]]
     entries = range(A.indptr[j0], A.indptr[j0 + 1])
     assert len(entries) > 1  # something left in the column to pivot on
     changed = A.data.copy()
@@ -149,7 +152,7 @@ def test_step_factorization_renews_the_row_order_when_a_pivot_fails(monkeypatch)
         if A.indices[k] == i0:
             changed[k] *= 1e-6
     check(changed, superlu, 2)
-    check(changed * 1.01, factorization.SparseLU, 2)
+    check(changed * 1.01, compiled, 2)
 
 
 def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch):
@@ -166,23 +169,25 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
     (the normwise backward error, what a stable LU guarantees, is ~1e-23)."""
     import morphlab as ml
     from morphlab import morphing as mo
-    from morphlab.solve.stepper import Settings, Stepper
+    from morphlab.solve import superlu
+    from morphlab.solve.settings import Settings
+    from morphlab.solve.stepper import Stepper
 
-    monkeypatch.setattr(factorization, "DENSE_MAX", 0)
     system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=2000))
-    st = Stepper(system, Settings(**mo.SETTINGS))
-    st._fill(np.zeros(st.n), system.q0, system.v0, 0.0, st.init_coef)
-    data = st.data.copy()
+    st = Stepper.dynamic(system, Settings(**mo.SETTINGS, dense_max=0))
+    p = st.problem(system.q0, system.v0, st.init_coef, None, st.time_arrays(0.0), 0.0, 0)
+    data = np.zeros(system.nnz)
+    p.fill(np.zeros(st.n), data)
+    A = factorization.csc_matrix(data, system.indices, system.indptr, system.n)
     fills = []
     for scaled in (True, False):
         if not scaled:
-            monkeypatch.setattr(factorization, "column_scaling", lambda d, p: np.ones(p.size - 1))
+            monkeypatch.setattr(superlu, "column_scaling", lambda d, p: np.ones(p.size - 1))
         fac = factorization.StepFactorization(system.indices, system.indptr, system.n,
-                                              np.float64)
+                                              np.float64, dense_max=0)
         lu = fac(data)
         fills.append(lu.lu.nnz / data.size)
         b = np.ones(system.n)
-        A = st.matrix()
         x = lu.solve(b)
         assert np.max(np.abs(A @ x - b) / (abs(A) @ np.abs(x) + 1.0)) < 1e-10
     assert fills[0] < 4.0 < 10.0 < fills[1], fills

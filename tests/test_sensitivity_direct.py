@@ -31,6 +31,8 @@ import morphlab.sensitivity.api
 import morphlab.sensitivity.direct
 import morphlab.solve.linalg
 import morphlab.solve.stepper
+import morphlab.solve.superlu
+from morphlab.sensitivity import Direct
 
 R = ml.responses
 GRAVITY = (0.0, -9.81e3)  # mm/s^2
@@ -226,9 +228,8 @@ def _count_factorizations(monkeypatch):
     reports a failed pivot leaves no factors), the dense LU of small step matrices
     ``morphlab.solve.linalg.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
     The compiled Newton loop (``morphlab.kernels.newton``) factors where no counter can see
-    it, so the solver iterates from Python here (``Stepper.compiled = False``, the same
-    iterates) and the tests below take the sparse path (``DENSE_MAX = 0``)."""
-    monkeypatch.setattr(morphlab.solve.stepper.Stepper, "compiled", False)
+    it, so the solver iterates from Python in the tests below (``compiled_newton=False``, the
+    same iterates), which take the sparse path (``dense_max=0``)."""
     calls = {"n": 0}
 
     def wrap(fn, done=lambda out: True):
@@ -238,8 +239,8 @@ def _count_factorizations(monkeypatch):
             return out
         return counted
 
-    for mod in (scipy.sparse.linalg, morphlab.solve.linalg, morphlab.solve.stepper,
-                morphlab.sensitivity.api, morphlab.sensitivity.direct):
+    for mod in (scipy.sparse.linalg, morphlab.solve.linalg, morphlab.solve.superlu,
+                morphlab.solve.stepper, morphlab.sensitivity.api, morphlab.sensitivity.direct):
         for name in ("splu", "_gstrf", "refactor", "lu_factor", "spsolve", "factorized",
                      "spilu"):
             fn = getattr(mod, name, None)
@@ -252,21 +253,21 @@ def _count_factorizations(monkeypatch):
 @pytest.mark.parametrize("name", CASES)
 def test_direct_uses_only_the_primal_factorizations(monkeypatch, name):
     build, p0, resp = responses_for(name)
-    monkeypatch.setattr(morphlab.solve.linalg, "DENSE_MAX", 0)
+    run = dict(RUN, dense_max=0, compiled_newton=False)
     calls = _count_factorizations(monkeypatch)
-    plain = ml.simulate(build(p0), **RUN)
+    plain = ml.simulate(build(p0), **run)
     n_plain = calls["n"]
     assert n_plain == plain.n_factorizations > 0  # the counter sees the solver's factorizations
 
     calls["n"] = 0
-    sens = ml.sensitivities(build, p0, resp, method="direct", **RUN)
+    sens = ml.sensitivities(build, p0, resp, method="direct", **run)
     # exact equality: the n_x right-hand sides of every step are solved with the primal's LU
     assert calls["n"] == n_plain
     assert sens.stats["n_factorizations"] == sens.result.n_factorizations == n_plain
     np.testing.assert_array_equal(sens.result.newton_iterations, plain.newton_iterations)
 
     calls["n"] = 0
-    cs = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
+    cs = ml.sensitivities(build, p0, resp, method="complex-step", **run)
     # contrast (shows the count can differ): the reference factors its own complex matrices
     assert calls["n"] == cs.stats["n_factorizations"] > n_plain
 
@@ -288,30 +289,26 @@ def test_refinement_residuals_at_round_off(name):
 
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
 @pytest.mark.parametrize("name", CASES)
-def test_block_size_does_not_change_the_sensitivities(monkeypatch, name, scheme):
+def test_block_size_does_not_change_the_sensitivities(name, scheme):
     """A direct run keeps the converged steps and solves their sensitivities in blocks
-    (``morphlab.sensitivity.direct.BLOCK_BYTES``): the same kernels on the same data, called at
-    other
-    times, so one step per block, a few steps per block and the whole run in one block must
-    give the same numbers bit for bit. For the sparse path as well (DENSE_MAX = 0), whose
-    recursion runs from Python instead of in one compiled call, and for the paper's weighting,
-    whose residual also reads the state at the start of each step (for a block's first step
-    that state belongs to the previous block)."""
-    import morphlab.sensitivity.direct as sd
-
+    (``Direct(block_bytes=...)``): the same kernels on the same data, called at other times,
+    so one step per block, a few steps per block and the whole run in one block must give the
+    same numbers bit for bit. For the sparse path as well (``dense_max=0``), whose recursion
+    runs from Python where SuperLU chose a row order instead of in one compiled call, and for
+    the paper's weighting, whose residual also reads the state at the start of each step (for
+    a block's first step that state belongs to the previous block)."""
     build, p0, resp = responses_for(name)
-    default = sd.BLOCK_BYTES
-    # (DENSE_MAX: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
+    default = Direct().block_bytes
+    # (dense_max: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
     # per step here with dense factors; on the sparse path ~4-7 kB with refactored ones,
     # ~45 kB with SuperLU's where it chose a new row order, by
-    # morphlab.sensitivity.direct._lu_bytes)
+    # morphlab.sensitivity.direct._factor_bytes)
     for dense_max, few in ((1000, 60_000), (0, 100_000)):
-        monkeypatch.setattr(morphlab.solve.linalg, "DENSE_MAX", dense_max)
         runs = []
         for block_bytes in (default, 1, few):
-            monkeypatch.setattr(sd, "BLOCK_BYTES", block_bytes)
-            runs.append(ml.sensitivities(build, p0, resp, method="direct", store="all",
-                                         scheme=scheme, **RUN))
+            runs.append(ml.sensitivities(build, p0, resp, method=Direct(block_bytes=block_bytes),
+                                         store="all", scheme=scheme, dense_max=dense_max,
+                                         **RUN))
         n_steps = runs[0].result.t.size - 1
         # initial solve, then all steps in one block / one per block / a few per block
         assert [r.stats["blocks"] for r in runs][:2] == [2, n_steps + 1]

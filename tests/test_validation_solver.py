@@ -6,25 +6,28 @@ angle known in closed form (law of cosines); the steps completed before a failur
 against the closed-form position analysis of the same linkage.
 """
 
+import functools
+
 import numpy as np
 import pytest
 from models import flexible_mechanism
 
 import morphlab as ml
-from morphlab.solve import linalg as factorization
+from morphlab.solve.settings import Settings
+from morphlab.solve.stepper import Stepper
+
+PATHS = {"dense": dict(dense_max=1000), "sparse": dict(dense_max=0),
+         "python": dict(dense_max=0, compiled_newton=False)}
 
 
-@pytest.fixture(autouse=True, params=["dense", "sparse", "python"])
+@pytest.fixture(autouse=True, params=list(PATHS))
 def newton_path(request, monkeypatch):
-    """Every test three times: the Newton loop in one compiled call
-    (``Stepper._compiled_newton``) on the dense LU of small step matrices and on the sparse
-    factorization of larger ones (``DENSE_MAX`` forces either on these models of 20-40
-    unknowns; SuperLU factors the first two sparse matrices of a run from Python), and every
-    iteration from Python (``Stepper._iteration``, ``Stepper.compiled = False``). All must fail
-    the same way."""
-    monkeypatch.setattr(factorization, "DENSE_MAX", 1000 if request.param == "dense" else 0)
-    if request.param == "python":
-        monkeypatch.setattr(ml.solve.stepper.Stepper, "compiled", False)
+    """Every test three times: the Newton loop in one compiled call on the dense LU of small
+    step matrices and on the sparse factorization of larger ones (``dense_max`` forces either
+    on these models of 20-40 unknowns; SuperLU factors the first two sparse matrices of a run
+    from Python), and every iteration from Python (``compiled_newton=False``). All must fail
+    the same way. (``ml.simulate`` of these tests gets the path's settings.)"""
+    monkeypatch.setattr(ml, "simulate", functools.partial(ml.simulate, **PATHS[request.param]))
     return request.param
 
 
@@ -210,10 +213,8 @@ def test_singular_step_matrix_names_the_time_and_the_step(newton_path):
     four-bar scaled to zero, so the equation rows of the free directions vanish) raises
     SingularMatrixError in the initial solve, at t = 0, with the residual and the dominant
     equations; the dense path names the unknown whose column has no pivot."""
-    from morphlab.solve.stepper import Settings, Stepper
-
     system = ml.compile_model(flexible_mechanism())
-    stp = Stepper(system, Settings(t_end=0.01, dt=1e-3))
+    stp = Stepper.dynamic(system, Settings(t_end=0.01, dt=1e-3, **PATHS[newton_path]))
     stp.S = type(stp.S)(*(x * 0.0 if x.dtype.kind == "f" else x for x in stp.S))
     with pytest.raises(ml.SingularMatrixError) as err:
         stp.initial(0.0, system.q0, system.v0)

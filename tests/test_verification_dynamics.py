@@ -267,19 +267,19 @@ def test_newton_converges_quadratically_on_flexible_mechanism():
 def test_newton_order_check_detects_an_inexact_jacobian(monkeypatch):
     """The same measure on a Newton matrix scaled by 1.01 (a 1 % Jacobian error): linear
     convergence at rate ~1e-2 must fail the test above. (The matrix is perturbed in
-    ``Stepper._fill``, which the compiled Newton loop bypasses, so the step-by-step loop is
-    forced.)"""
-    from morphlab.solve import stepper as solver
+    ``StepProblem.fill``, which the compiled Newton loop bypasses, so the loop from Python is
+    used.)"""
+    from morphlab.solve.newton import StepProblem
 
-    monkeypatch.setattr(solver.Stepper, "compiled", False)
-    fill = solver.Stepper._fill
+    fill = StepProblem.fill
 
-    def off_by_one_percent(self, *args, **kw):
-        fill(self, *args, **kw)
-        self.data *= 1.01
+    def off_by_one_percent(self, z, data):
+        fill(self, z, data)
+        data *= 1.01
 
-    monkeypatch.setattr(solver.Stepper, "_fill", off_by_one_percent)
-    res = ml.simulate(flexible_mechanism(), t_end=0.02, dt=2e-3, tol=1e-14, max_iter=40)
+    monkeypatch.setattr(StepProblem, "fill", off_by_one_percent)
+    res = ml.simulate(flexible_mechanism(), t_end=0.02, dt=2e-3, tol=1e-14, max_iter=40,
+                      compiled_newton=False)
     p = newton_orders(res)
     assert np.median(p) < 1.5  # observed median 1.28 (7 iterations per step instead of 3-4)
 

@@ -39,6 +39,14 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from ..compile import compile_model
+from ..kernels.assemble import step_matrix, step_residual
+from ..kernels.direct import explicit_loads, split_matrices
+from ..kernels.newton import factor_matrix, solve_factored
+from ..sensitivity.perturb import CS_STEP, complex_systems, pseudo_load_data
+from ..solve.settings import Settings
+from ..solve.superlu import PIVOT_THRESHOLD
+from ..solve.timeloop import integrate
 from ..studies.timing import interleaved_times
 from .report import table
 
@@ -335,22 +343,14 @@ def case_floor(repeats: int, quick: bool) -> dict:
     derivatives, a state part from a single fill). Each figure is a
     call from Python (the dispatch of a kernel that takes the system tuple costs ~3 us of it;
     the compiled loops pay it once per step or block)."""
-    from ..compile import compile_model
-    from ..kernels.assemble import step_matrix, step_residual
-    from ..kernels.direct import explicit_loads, split_matrices
-    from ..kernels.newton import factor_matrix, solve_factored
-    from ..sensitivity.direct import CS_STEP, _pseudo_load_data
-    from ..solve.stepper import Settings
-    from ..solve.timeloop import integrate
-
     mo = _morphing()
     settings = Settings(**mo.SETTINGS)
     p0 = dict(mo.DEFAULTS)
     names = list(p0)
     sys0 = compile_model(mo.build(p0))
-    perturbed = [compile_model(mo.build({**p0, v: p0[v] + 1j * CS_STEP}), dtype=np.complex128,
-                               like=sys0) for v in names]
-    data = _pseudo_load_data(sys0, settings, names, perturbed, mo.build, p0, None, "direct")
+    perturbed = complex_systems(mo.build, p0, names, sys0, settings.t_end)
+    times = settings.t_start + settings.h * np.arange(settings.n_steps + 1)
+    data = pseudo_load_data(sys0, perturbed, np.full(len(names), 1j * CS_STEP), times)
     k = settings.n_steps // 2
     seen = {}
 
@@ -364,34 +364,32 @@ def case_floor(repeats: int, quick: bool) -> dict:
     ta = stp.time_arrays(st.t)
     n, nnz, n_dof = sys0.n, sys0.nnz, sys0.n_dof
     R, R_hist = np.empty(n), np.zeros(n)
-    common = (stp.S, info.z, info.qh, info.vh, coef.bh2, coef.gh, stp.scale, coef.arrays[3],
-              stp.b0, stp.b1)
-    lu = info.lu
-    pivots = lu.pivots  # the morphing model is sparse (123 unknowns): a refactorization
-    order, pattern = pivots.order_arrays, pivots.solve_arrays
-    no_lu, no_piv = np.zeros((0, 0)), np.zeros(0, dtype=np.int64)
-    Lx, Ux, Ud = pivots.empty_factors()
-    tau = 0.1
+    common = (stp.S, info.z, info.qh, info.vh, coef.bh2, coef.gh, stp.scale,
+              coef.arrays.w_new, stp.b0, stp.b1)
+    fac = stp.newton.factorization  # the morphing model is sparse (123 unknowns)
+    no_lu, no_piv, Lx, Ux, Ud, order, pattern = fac.loop_arrays()
+    data_buf = stp.newton.data
     b1, b5 = np.ones((n, 1)), np.ones((n, 5))
     w1, w5 = np.empty_like(b1), np.empty_like(b5)
     mats = np.zeros((3, nnz))
     Z = np.zeros(nnz, dtype=np.complex128)
     rhs = np.zeros((n, len(names)))
     lam = st.lam / stp.scale
-    w = coef.arrays[3]
+    w = coef.arrays.w_new
     kernels = {
         "residual": lambda: step_residual(*common, *ta, n_dof, R_hist, R),
-        "matrix": lambda: step_matrix(*common, ta[3], stp.data),
-        "factorization": lambda: factor_matrix(stp.data, sys0.indices, sys0.indptr, no_lu,
-                                               no_piv, Lx, Ux, Ud, order, pattern, tau),
+        "matrix": lambda: step_matrix(*common, ta.F, data_buf),
+        "factorization": lambda: factor_matrix(data_buf, sys0.indices, sys0.indptr, no_lu,
+                                               no_piv, Lx, Ux, Ud, order, pattern,
+                                               PIVOT_THRESHOLD),
         "solve, 1 column": lambda: solve_factored(b1, w1, no_lu, no_piv, Lx, Ux, Ud, pattern),
         "solve, 5 columns": lambda: solve_factored(b5, w5, no_lu, no_piv, Lx, Ux, Ud, pattern),
         "split matrices (state part)": lambda: split_matrices(
-            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta[3], *mats, Z),
+            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, *mats, Z),
         "partial derivatives, 5 variables": lambda: explicit_loads(
-            data["S_nom"], data["P"], data["parts"], st.q, st.v, st.a, st.lam, w, False, old.q,
-            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data["TAB"], data["tab0"],
-            k - 1, k, n_dof, data["pert"], np.zeros((2, n), dtype=np.complex128), rhs),
+            data.S_nom, data.P, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
+            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab0,
+            k - 1, k, n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), rhs),
     }
     us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}
     med = {name: v["median"] for name, v in us.items()}

@@ -107,6 +107,11 @@ class System:
         return self.n_dof + self.n_con
 
     @property
+    def unknown_names(self) -> list[str]:
+        """Name of each equation / unknown of a step: the DOFs, then ``"constraint <row>"``."""
+        return self.dof_names + [f"constraint {c}" for c in self.con_names]
+
+    @property
     def nnz(self) -> int:
         return int(self.indices.shape[0])
 

@@ -77,7 +77,7 @@ def stress_map(t, stress, ax=None, arc=None, fibre="max", *, units=None) -> Figu
         Times [s], strictly increasing.
     stress : array_like, shape (n_t, n_elem, 2, 2)
         Stress at both ends and both outer fibres of every element, as from
-        :meth:`Result.stress <morphlab.results.Result.stress>` [MPa].
+        :meth:`Result.stress <morphlab.results.result.Result.stress>` [MPa].
     ax : matplotlib Axes, optional
     arc : array_like, shape (n_elem + 1,) or (n_elem,), optional
         Arc length of the nodes (cell edges) or of the element centres [mm], e.g.

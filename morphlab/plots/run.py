@@ -118,7 +118,7 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
     ----------
     model_or_system : Model, System or Result
         The mechanism; a compiled :class:`~morphlab.compile.System` or a
-        :class:`~morphlab.results.Result` is drawn through its ``model``.
+        :class:`~morphlab.results.result.Result` is drawn through its ``model``.
     ax : matplotlib Axes, optional
         Axes to draw into; default a new figure.
     show_nodes : bool

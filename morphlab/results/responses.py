@@ -1,4 +1,4 @@
-"""Complex-safe response functions of a :class:`~morphlab.results.Result`.
+"""Complex-safe response functions of a :class:`~morphlab.results.result.Result`.
 
 A response is any function ``f(result) -> scalar``. :func:`morphlab.sensitivities` differentiates
 it by complex step over perturbed histories, so it must keep imaginary parts: use ``+ - * /``,

@@ -2,5 +2,6 @@
 its factorizations and its residual kernels."""
 
 from .api import SensitivityResult, sensitivities
+from .strategies import ComplexStep, Direct, FiniteDifference
 
-__all__ = ["SensitivityResult", "sensitivities"]
+__all__ = ["ComplexStep", "Direct", "FiniteDifference", "SensitivityResult", "sensitivities"]

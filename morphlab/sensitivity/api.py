@@ -1,4 +1,4 @@
-"""Design sensitivities of dynamic responses (paper §3, DESIGN.md §6).
+"""Design sensitivities of dynamic responses (paper §3, ``docs/theory.md`` §6).
 
 Direct differentiation of the step residual ``R(z_{n+1}(p); s_n(p), p) = 0`` gives, for every
 design variable ``p_i``,
@@ -28,16 +28,17 @@ converged point (assembled, not factored), so no factorization beyond the primal
 The Newmark update is linear, so ``dq_{n+1} = dq_hat + beta h² da_{n+1}``,
 ``dv_{n+1} = dv_hat + gamma h da_{n+1}``. Initial sensitivities: ``dq_0, dv_0`` from ``build``
 by complex step (forward difference for ``direct-fd``), ``da_0, dlam_0`` from the
-differentiated initial solve. The run is :mod:`morphlab.sensitivity_direct`, the compiled
+differentiated initial solve. The run is :mod:`morphlab.sensitivity.direct`, the compiled
 work of a step :mod:`morphlab.kernels.direct`.
 
 Response gradients ``dr/dp_i = d/de r(history + e d(history)/dp_i; p + e e_i)`` are taken by
 complex step of the response over the perturbed histories, so any complex-safe function of a
-:class:`~morphlab.results.Result` works.
+:class:`~morphlab.results.result.Result` works.
 
 Comparators: ``"complex-step"`` (the whole simulation in complex arithmetic, one run per
 variable: the reference, no truncation error), ``"forward-difference"`` (n_x + 1 runs) and
-``"central-difference"`` (2 n_x + 1 runs).
+``"central-difference"`` (2 n_x + 1 runs). Each method is a strategy object of
+:mod:`morphlab.sensitivity.strategies`; the strings are aliases.
 """
 
 from __future__ import annotations
@@ -48,20 +49,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compile import System, compile_model
+from ..compile import compile_model
 from ..errors import SensitivityError
 from ..results.result import Result
-from ..solve.stepper import Settings
-from ..solve.timeloop import integrate
-from .direct import (
-    CS_STEP,
-    HISTORIES,
-    check_same_layout,
-    direct_run,
-    histories_to_store,
-)
-
-METHODS = ("direct", "direct-fd", "complex-step", "forward-difference", "central-difference")
+from ..solve.settings import Settings
+from .histories import HISTORIES
+from .perturb import CS_STEP, complex_systems, relative_steps
+from .strategies import Setup, resolve
 
 
 @dataclass
@@ -70,6 +64,8 @@ class SensitivityResult:
 
     Attributes
     ----------
+    method : str
+        The method's name (``"direct"``, ``"direct-fd"``, ``"complex-step"``, ...).
     result : Result
         The primal run at ``p0``.
     values : dict[str, float]
@@ -98,11 +94,12 @@ class SensitivityResult:
     stats: dict = field(default_factory=dict)
     _perturbed: list = field(default_factory=list, repr=False)
     _steps: dict = field(default_factory=dict, repr=False)
+    _strategy: object = field(default=None, repr=False)
 
     def derivative(self, fn: Callable[[Result], np.ndarray]) -> np.ndarray:
         """``d fn(result) / d p`` for any complex-safe accessor ``fn`` (e.g. ``lambda r:
         r.stress("skin")``); shape ``fn(result).shape + (n_x,)``."""
-        cols = [_diff_column(fn, self.result, pert, self.method, self._steps.get(name))
+        cols = [self._strategy.column(fn, self.result, pert, self._steps.get(name))
                 for name, pert in zip(self.variables, self._perturbed)]
         return np.stack(cols, axis=-1)
 
@@ -123,32 +120,9 @@ class SensitivityResult:
         return "\n".join(lines)
 
 
-def _diff_column(fn, base: Result, pert, method, step):
-    """One column of a derivative from a perturbed result (complex or finite difference)."""
-    if method in ("direct", "direct-fd", "complex-step"):
-        return np.imag(fn(pert)) / CS_STEP
-    if method == "forward-difference":
-        return (np.asarray(fn(pert)) - np.asarray(fn(base))) / step
-    plus, minus = pert
-    return (np.asarray(fn(plus)) - np.asarray(fn(minus))) / (2.0 * step)
-
-
-def _uses_variable(sys_p: System, sys0: System, t_end: float) -> bool:
-    """Does the perturbed system differ from the nominal one anywhere?"""
-    arrays = ("q0", "v0", "gravity", "body_scal", "body_damp", "flex_IS", "flex_I0S",
-              "flex_I0IS", "elem_M", "elem_St", "elem_K", "elem_B", "con_u0", "con_c0",
-              "load_u0", "load_F0", "torque_T0")
-    for k in arrays:
-        if not np.array_equal(getattr(sys_p, k), getattr(sys0, k)):
-            return True
-    for t in (0.0, 0.37 * t_end, t_end):
-        for x, y in zip(sys_p.time_arrays(t), sys0.time_arrays(t)):
-            if not np.array_equal(x, y):
-                return True
-    return False
-
-
-def _check_response(name, fn, value_c, value0):
+def _check_response(name, value_c, value0):
+    """A response of a complex-step perturbed result must be a complex scalar whose real part
+    is the nominal value."""
     if not np.iscomplexobj(np.asarray(value_c)):
         raise SensitivityError(
             f"response {name!r} is not complex-safe: it returned a real number for a complex "
@@ -164,14 +138,28 @@ def _check_response(name, fn, value_c, value0):
             f"perturbation ({np.real(value_c)!r} vs {value0!r})")
 
 
+def _check_inputs(p0, names, responses, store) -> None:
+    if not isinstance(p0, Mapping) or not p0:
+        raise SensitivityError("p0 must be a non-empty dict of design variables")
+    unknown = [v for v in names if v not in p0]
+    if unknown:
+        raise SensitivityError(f"design variables {unknown} are not in p0 (known: {list(p0)})")
+    if not isinstance(responses, Mapping) or not responses:
+        raise SensitivityError("responses must be a non-empty dict name -> function(result)")
+    for k, fn in responses.items():
+        if not callable(fn):
+            raise SensitivityError(f"response {k!r} is not callable")
+    if not (store in ("auto", "all") or (isinstance(store, (tuple, list)) and store
+                                         and set(store) <= set(HISTORIES))):
+        raise SensitivityError(f"store must be 'auto', 'all' or a non-empty tuple of "
+                               f"{HISTORIES}, got {store!r}")
+
+
 def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
-                  responses: Mapping[str, Callable[[Result], float]], *, t_end: float,
-                  dt: float, rho_inf: float = 0.8, method: str = "direct",
-                  variables: list | None = None, step: float = 1e-6, tol: float = 1e-10,
-                  max_iter: int = 12, stabilization: float = 0.5,
-                  stabilization_damping: float = 1.0, constraint_form: str = "paper",
-                  scheme: str = "arnold-bruls", refine: int = 1, store="auto",
-                  progress: bool = False) -> SensitivityResult:
+                  responses: Mapping[str, Callable[[Result], float]], *, method="direct",
+                  variables: list | None = None, settings: Settings | None = None,
+                  step: float = 1e-6, refine: int = 1, store="auto", progress: bool = False,
+                  **options) -> SensitivityResult:
     """Values and design gradients of ``responses`` of the model ``build(p0)``.
 
     Parameters
@@ -183,20 +171,20 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
         Nominal design.
     responses : dict[str, callable]
         ``f(result) -> scalar``, complex-safe (see :mod:`morphlab.responses`).
-    t_end, dt, rho_inf, tol, max_iter, stabilization, stabilization_damping, constraint_form,
-    scheme :
-        Solver settings, as in :func:`morphlab.simulate`.
-    method : str
-        ``"direct"``, ``"direct-fd"``, ``"complex-step"``, ``"forward-difference"`` or
-        ``"central-difference"`` (module docstring).
+    method : str or strategy
+        ``"direct"``, ``"direct-fd"``, ``"complex-step"``, ``"forward-difference"``,
+        ``"central-difference"`` (module docstring), or a strategy object of
+        :mod:`morphlab.sensitivity.strategies` (``Direct(...)``, ``ComplexStep()``,
+        ``FiniteDifference(kind, step)``) with its own options.
     variables : list[str], optional
         Subset of ``p0`` to differentiate (default: all).
+    settings : Settings, optional; **options
+        Solver settings, as in :func:`morphlab.simulate` (``t_end``, ``dt``, ``rho_inf``, ...).
     step : float
-        Relative step of the finite differences (``h_i = step * |p_i|``, or ``step`` when
-        ``p_i = 0``); used by ``"direct-fd"`` and the difference methods.
+        With a method string: relative step of the finite differences (``h_i = step |p_i|``,
+        or ``step`` when ``p_i = 0``), used by ``"direct-fd"`` and the difference methods.
     refine : int
-        Iterative-refinement sweeps of the direct solve against the exact converged matrix
-        (each contracts the error by O(last Newton correction) <= 1e-10: one is enough).
+        With a method string: iterative-refinement sweeps of the direct solve.
     store : "auto", "all" or tuple of {"q", "v", "a", "lam"}
         Direct methods: the sensitivity histories kept for every step, (n_t, ..., n_x) each
         (the others keep only the two levels the time stepping needs). ``"auto"`` keeps those
@@ -216,118 +204,50 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
         Unknown method, unknown or unused design variable, structure-changing variable,
         response that is not complex-safe.
     """
-    if method not in METHODS:
-        raise SensitivityError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if not isinstance(p0, Mapping) or not p0:
-        raise SensitivityError("p0 must be a non-empty dict of design variables")
+    strategy = resolve(method, step, refine)
     names = list(p0) if variables is None else list(variables)
-    unknown = [v for v in names if v not in p0]
-    if unknown:
-        raise SensitivityError(f"design variables {unknown} are not in p0 (known: {list(p0)})")
-    if not isinstance(responses, Mapping) or not responses:
-        raise SensitivityError("responses must be a non-empty dict name -> function(result)")
-    for k, fn in responses.items():
-        if not callable(fn):
-            raise SensitivityError(f"response {k!r} is not callable")
-    if not (store in ("auto", "all") or (isinstance(store, (tuple, list)) and store
-                                         and set(store) <= set(HISTORIES))):
-        raise SensitivityError(f"store must be 'auto', 'all' or a non-empty tuple of "
-                               f"{HISTORIES}, got {store!r}")
-    if not (isinstance(step, float) and 0 < step < 1):
-        raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
-    settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
-                        stabilization=stabilization,
-                        stabilization_damping=stabilization_damping,
-                        constraint_form=constraint_form, scheme=scheme)
-    settings.validate()
+    _check_inputs(p0, names, responses, store)
+    settings = Settings.of(settings, **options)
     p0 = {k: float(np.real(v)) for k, v in p0.items()}
-    # relative steps (a density of 2.7e-9 t/mm^3 must not get an absolute step)
-    steps = {v: step * (abs(p0[v]) if p0[v] != 0.0 else 1.0) for v in names}
 
     t_start = _time.perf_counter()
     sys0 = compile_model(build(dict(p0)))
-    perturbed_cs = []
-    for v in names:
-        pv = dict(p0)
-        pv[v] = p0[v] + 1j * CS_STEP
-        sp_ = compile_model(build(pv), dtype=np.complex128, like=sys0)
-        check_same_layout(sys0, sp_, v)
-        if not _uses_variable(sp_, sys0, t_end):
-            raise SensitivityError(
-                f"design variable {v!r} is not used by build: no compiled array, initial "
-                "state or load changes with it, so its gradient would be silently zero")
-        perturbed_cs.append(sp_)
+    csys = complex_systems(build, p0, names, sys0, settings.t_end)
+    steps = relative_steps(p0, names, getattr(strategy, "step", step))
+    setup = Setup(sys0, settings, build, p0, names, csys, dict(responses), store, progress,
+                  steps)
     t_setup = _time.perf_counter() - t_start
+    run = strategy.run(setup)
+    run.timing["setup"] = t_setup
 
-    if method in ("direct", "direct-fd"):
-        kept = histories_to_store(store, responses, sys0, settings)
-        out = direct_run(sys0, settings, names, perturbed_cs, build, p0, steps, method, refine,
-                      progress, kept)
-    elif method == "complex-step":
-        out = _complex_step(sys0, settings, names, perturbed_cs, progress)
-    else:
-        out = _differences(sys0, settings, names, build, p0, steps, method, progress)
-    res0, perturbed, state, timing, stats = out
-    timing["setup"] = t_setup
+    t_resp = _time.perf_counter()
+    values, gradients = _differentiate(strategy, responses, run, names, steps)
+    run.timing["responses"] = _time.perf_counter() - t_resp
+    run.timing["total"] = _time.perf_counter() - t_start
+    return SensitivityResult(method=strategy.name, variables=names, result=run.result,
+                             values=values, gradients=gradients, state=run.state,
+                             timing=run.timing, stats=run.stats, _perturbed=run.perturbed,
+                             _steps=steps, _strategy=strategy)
 
+
+def _differentiate(strategy, responses, run, names, steps) -> tuple[dict, dict]:
+    """Values of the responses on the primal result and their derivatives over the perturbed
+    results (complex step over a complex result, or differences)."""
     values: dict = {}
     gradients: dict = {}
-    t_resp = _time.perf_counter()
     for rname, fn in responses.items():
-        val0 = fn(res0)
+        val0 = fn(run.result)
         if np.ndim(val0) != 0:
             raise SensitivityError(f"response {rname!r} must return a scalar, got shape "
                                    f"{np.shape(val0)}")
-        if np.iscomplexobj(np.asarray(val0)):
-            val0 = np.real(val0)
-        values[rname] = float(val0)
+        values[rname] = float(np.real(val0))
         gradients[rname] = {}
-        for v, pert in zip(names, perturbed):
-            if method in ("direct", "direct-fd", "complex-step"):
+        for v, pert in zip(names, run.perturbed):
+            if strategy.complex_results:
                 vc = fn(pert)
-                _check_response(rname, fn, vc, values[rname])
+                _check_response(rname, vc, values[rname])
                 gradients[rname][v] = float(np.imag(vc) / CS_STEP)
             else:
-                gradients[rname][v] = float(np.real(_diff_column(fn, res0, pert, method,
-                                                                 steps[v])))
-    timing["responses"] = _time.perf_counter() - t_resp
-    timing["total"] = _time.perf_counter() - t_start
-    return SensitivityResult(method=method, variables=names, result=res0, values=values,
-                             gradients=gradients, state=state, timing=timing, stats=stats,
-                             _perturbed=perturbed, _steps=steps)
-
-
-def _complex_step(sys0, settings, names, perturbed_cs, progress):
-    t0 = _time.perf_counter()
-    res0 = integrate(sys0, settings, progress=progress)
-    t_primal = _time.perf_counter() - t0
-    perturbed = []
-    for s in perturbed_cs:
-        perturbed.append(integrate(s, settings, scale=res0.scale, polish=1, progress=progress))
-    total = _time.perf_counter() - t0
-    timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total}
-    stats = {"n_factorizations": res0.n_factorizations + sum(r.n_factorizations
-                                                             for r in perturbed)}
-    return res0, perturbed, {}, timing, stats
-
-
-def _differences(sys0, settings, names, build, p0, steps, method, progress):
-    t0 = _time.perf_counter()
-    res0 = integrate(sys0, settings, progress=progress)
-    t_primal = _time.perf_counter() - t0
-    perturbed = []
-    nfac = res0.n_factorizations
-    for v in names:
-        runs = []
-        for sign in ((1.0,) if method == "forward-difference" else (1.0, -1.0)):
-            pv = dict(p0)
-            pv[v] = p0[v] + sign * steps[v]
-            sp_ = compile_model(build(pv), dtype=np.float64, like=sys0)
-            check_same_layout(sys0, sp_, v)
-            r = integrate(sp_, settings, scale=res0.scale, progress=progress)
-            nfac += r.n_factorizations
-            runs.append(r)
-        perturbed.append(runs[0] if len(runs) == 1 else tuple(runs))
-    total = _time.perf_counter() - t0
-    timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total}
-    return res0, perturbed, {}, timing, {"n_factorizations": nfac}
+                gradients[rname][v] = float(np.real(strategy.column(fn, run.result, pert,
+                                                                    steps[v])))
+    return values, gradients

@@ -3,8 +3,9 @@ on the sparse saddle-point system), factorizations of the step matrix, the time 
 statics."""
 
 from .scheme import GeneralizedAlpha
+from .settings import Settings, State
 from .statics import static
-from .stepper import Settings, State, Stepper
+from .stepper import Stepper
 from .timeloop import StepInfo, integrate, simulate
 
 __all__ = ["GeneralizedAlpha", "Settings", "State", "StepInfo", "Stepper", "integrate",

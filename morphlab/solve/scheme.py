@@ -2,9 +2,10 @@
 
 A step is a small table (:class:`StepCoefficients`): the Newmark predictor and update, the
 recurrence of the algorithmic acceleration and the weights of the residual's time levels.
-The solver (:mod:`morphlab.solver`) and the sensitivities (:mod:`morphlab.sensitivity`) run
-the same step code on these numbers; the update is linear, so :func:`newmark_predict` and
-:func:`newmark_update` advance states ``(n,)`` and sensitivity columns ``(n, n_x)`` alike.
+The solver (:mod:`morphlab.solve.stepper`) and the sensitivities (:mod:`morphlab.sensitivity`)
+run the same step code on these numbers; the update is linear, and one pair of kernels
+(:mod:`morphlab.kernels.newmark`) advances states and sensitivity columns alike.
+Formulation: ``docs/theory.md`` §5.
 """
 
 from __future__ import annotations
@@ -12,10 +13,12 @@ from __future__ import annotations
 import functools
 import numbers
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ModelError
+from ..kernels import newmark
 
 
 def _is_real(x) -> bool:
@@ -62,6 +65,15 @@ class GeneralizedAlpha:
 SCHEMES = ("arnold-bruls", "paper")
 
 
+class CoefficientArrays(NamedTuple):
+    """A step's coefficients as the float64 arrays the kernels take."""
+
+    pc: np.ndarray  # (h, cqa, cqg, cva, cvg, bh2, gh): kernels.newmark
+    upd: np.ndarray  # (ga, gan, ggn): kernels.newmark
+    w_old: np.ndarray  # weights (wm, wl, wf, wcm, wcf) of the old level (zeros: none)
+    w_new: np.ndarray  # weights of the new level
+
+
 @dataclass
 class StepCoefficients:
     """One step of the generalized-alpha recurrence, as data.
@@ -73,8 +85,8 @@ class StepCoefficients:
         g_{n+1} = ga a + gan a_n + ggn g_n
 
     and the residual is ``E(s_{n+1}; new) + E(s_n; old)`` (``old is None``: no history).
-    The update is linear, so :func:`newmark_predict` / :func:`newmark_update` advance states
-    ``(n,)`` and sensitivity columns ``(n, n_x)`` alike.
+    The update is linear: :mod:`morphlab.kernels.newmark` advances states and sensitivity
+    columns alike.
     """
 
     h: float
@@ -86,14 +98,14 @@ class StepCoefficients:
     upd: tuple = (1.0, 0.0, 0.0)  # (ga, gan, ggn)
 
     @functools.cached_property
-    def arrays(self) -> tuple:
-        """The coefficients as the float64 arrays the kernels take: ``(pc, upd, w_old,
-        w_new)`` with ``pc = (h, cqa, cqg, cva, cvg, bh2, gh)`` and zero old weights when
-        there is no old level (formed once per coefficient object)."""
-        return (np.array((self.h,) + tuple(self.pred) + (self.bh2, self.gh), dtype=np.float64),
-                np.array(self.upd, dtype=np.float64),
-                np.array(self.old if self.old is not None else (0.0,) * 5, dtype=np.float64),
-                np.array(self.new, dtype=np.float64))
+    def arrays(self) -> CoefficientArrays:
+        """The coefficients as the float64 arrays the kernels take (formed once per
+        coefficient object; zero old weights when there is no old level)."""
+        return CoefficientArrays(
+            np.array((self.h,) + tuple(self.pred) + (self.bh2, self.gh), dtype=np.float64),
+            np.array(self.upd, dtype=np.float64),
+            np.array(self.old if self.old is not None else (0.0,) * 5, dtype=np.float64),
+            np.array(self.new, dtype=np.float64))
 
 
 def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,
@@ -128,15 +140,30 @@ def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,
 
 
 def newmark_predict(coef: StepCoefficients, q, v, a, g):
-    """Predictors ``(q_hat, v_hat)``; works on states (n,) and sensitivities (n, n_x)."""
-    cqa, cqg, cva, cvg = coef.pred
-    return q + coef.h * v + cqa * a + cqg * g, v + cva * a + cvg * g
+    """Predictors ``(q_hat, v_hat)`` of arrays of any one shape (states (n,), sensitivity
+    columns (n, n_x)): :func:`morphlab.kernels.newmark.predict`."""
+    shape = np.shape(q)
+    dt = np.result_type(q, v, a, g)
+    qh, vh = np.empty(shape, dtype=dt), np.empty(shape, dtype=dt)
+    newmark.predict(coef.arrays.pc, *(_flat(x, dt) for x in (q, v, a, g)), qh.reshape(-1),
+                    vh.reshape(-1))
+    return qh, vh
 
 
 def newmark_update(coef: StepCoefficients, qh, vh, a1, a, g):
-    """``(q_{n+1}, v_{n+1}, g_{n+1})`` from the predictors and the new acceleration ``a1``."""
-    ga, gan, ggn = coef.upd
-    return qh + coef.bh2 * a1, vh + coef.gh * a1, ga * a1 + gan * a + ggn * g
+    """``(q_{n+1}, v_{n+1}, g_{n+1})`` from the predictors and the new acceleration ``a1``
+    (:func:`morphlab.kernels.newmark.update`)."""
+    shape = np.shape(qh)
+    dt = np.result_type(qh, vh, a1, a, g)
+    q1, v1, g1 = (np.empty(shape, dtype=dt) for _ in range(3))
+    arr = coef.arrays
+    newmark.update(arr.pc, arr.upd, *(_flat(x, dt) for x in (qh, vh, a1, a, g)),
+                   q1.reshape(-1), v1.reshape(-1), g1.reshape(-1))
+    return q1, v1, g1
+
+
+def _flat(x, dt):
+    return np.ascontiguousarray(x, dtype=dt).reshape(-1)
 
 
 INITIAL = StepCoefficients(0.0, (1.0, 1.0, 1.0, 1.0, 1.0), None, 0.0, 0.0)

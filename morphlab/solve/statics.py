@@ -8,14 +8,17 @@ import time as _time
 import numpy as np
 
 from ..compile import System, compile_model
-from ..errors import ConvergenceError, ModelError, NonFiniteError
+from ..errors import ConvergenceError, ModelError, SolverError
 from ..model.model import Model
-from .scheme import StepCoefficients, _is_real
-from .stepper import Settings, Stepper
+from ..results.result import Result
+from .linalg import DENSE_MAX
+from .scheme import _is_real
+from .settings import Settings
+from .stepper import Stepper
 
 
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
-           max_iter: int = 30, q_start=None):
+           max_iter: int = 30, q_start=None, dense_max: int = DENSE_MAX):
     """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on
     ``(q, lam)``: ``K q + J^T lam - Q_g - Q_ext = 0``, ``Phi(q, t) = 0``.
 
@@ -33,6 +36,8 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
         Newton iteration limit per continuation step.
     q_start : (n_dof,), optional
         Starting configuration (default: the initial configuration).
+    dense_max : int
+        Linear solver: see :class:`~morphlab.solve.settings.Settings`.
 
     Returns
     -------
@@ -41,13 +46,11 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
 
     Notes
     -----
-    Uses the residual and matrix kernels of the dynamic solver with the inertia weight 0, the
-    constraint rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing
-    for the Newton correction of ``q`` (``beta h² = 1``).
+    The same residual and matrix kernels and the same Newton solver as the dynamic steps, with
+    the coefficients :data:`morphlab.solve.stepper.STATIC`: inertia weight 0, the constraint
+    rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing for the
+    displacement from the previous equilibrium (``beta h² = 1``).
     """
-    from ..errors import SolverError
-    from ..results.result import Result
-
     if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
             and steps >= 1):
         raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
@@ -56,28 +59,20 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     if not (_is_real(tol) and 0 < tol < 1):
         raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
     system = model if isinstance(model, System) else compile_model(model)
-    settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
-                        max_iter=max_iter, stabilization=0.0)
-    stp = Stepper(system, settings, scale=1.0)
-    stp.b0, stp.b1 = 1.0, 0.0
-    coef = StepCoefficients(1.0, (0.0, 1.0, 1.0, 0.0, 1.0), None, 1.0, 0.0)
-    n_dof = system.n_dof
-    L = system.length_scale
     dt = system.dtype
-    zero_v = np.zeros(n_dof, dtype=dt)
-    R0 = np.zeros(system.n, dtype=dt)
     q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
+    stp = Stepper.static(system, q, tol=tol, max_iter=max_iter, dense_max=dense_max)
+    n_dof = system.n_dof
+    zero_v = np.zeros(n_dof, dtype=dt)
     lam = np.zeros(system.n_con, dtype=dt)
-    # scale the constraint rows like the stiffness diagonal
-    stp._fill(np.zeros(system.n, dtype=dt), q, zero_v, 0.0, coef, scale=1.0)
-    d = np.abs(np.real(stp.matrix().diagonal()[:n_dof]))
-    stp.scale = float(np.median(d[d > 0])) if np.any(d > 0) else 1.0
     times = np.linspace(0.0, float(t), steps + 1) if steps > 1 else np.array([0.0, float(t)])
     Q = np.zeros((len(times), n_dof), dtype=dt)
     LAM = np.zeros((len(times), system.n_con), dtype=dt)
     iters = np.zeros(len(times), dtype=np.int64)
     Q[0] = q
     t_wall = _time.perf_counter()
+    settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
+                        max_iter=max_iter, stabilization=0.0, dense_max=dense_max)
 
     def result(k, status, message):
         sl = slice(0, k + 1)
@@ -91,38 +86,12 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
                       wall_time=_time.perf_counter() - t_wall, scale=stp.scale)
 
     for k in range(1, len(times)):
-        tk = float(times[k])
-        c, cd, cdd, F, T = stp.time_arrays(tk)
-        ta = (c, cd * 0, cdd * 0, F, T)
-        err = np.inf
-        it = 0
-        for it in range(1, max_iter + 1):  # noqa: B007 - it is recorded after the loop
-            z = np.concatenate([np.zeros(n_dof, dtype=dt), lam / stp.scale])
-            R = stp.residual(z, q, zero_v, tk, coef, R0, time_arrays=ta)
-            if not np.all(np.isfinite(R)):
-                e = NonFiniteError(f"static solve: non-finite residual at t={tk:.6g}", time=tk,
-                                   step=k, residual=float("nan"))
-                e.result = result(k - 1, "failed", str(e))
-                raise e
-            try:
-                lu = stp.factor(z, q, zero_v, tk, coef)
-            except SolverError as e:
-                e.step = k
-                e.result = result(k - 1, "failed", str(e))
-                raise
-            dz = lu.solve(-R)
-            q = q + dz[:n_dof]
-            lam = (z[n_dof:] + dz[n_dof:]) * stp.scale
-            err = float(np.max(np.abs(dz[:n_dof]))) / L
-            if err <= tol:
-                break
-        else:
-            e = ConvergenceError(
-                f"static solve did not converge at t={tk:.6g} (continuation step {k}) in "
-                f"{max_iter} iterations: position correction {err:.3g} of the model size; "
-                f"dominant equations: {', '.join(stp.dominant(R))}; try more steps",
-                time=tk, step=k, residual=float(np.linalg.norm(R)), dominant=stp.dominant(R))
+        try:
+            q, lam, iters[k], _ = stp.equilibrium(q, lam, float(times[k]), k)
+        except SolverError as e:
+            if isinstance(e, ConvergenceError):
+                e.args = (f"static solve: {e}; try more continuation steps",)
             e.result = result(k - 1, "failed", str(e))
-            raise e
-        Q[k], LAM[k], iters[k] = q, lam, it
+            raise
+        Q[k], LAM[k] = q, lam
     return result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")

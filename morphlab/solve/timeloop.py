@@ -1,7 +1,7 @@
 """The time loop: :func:`simulate` (the public entry point) and :func:`integrate`.
 
-Each step is solved by :class:`morphlab.solver.Stepper` (generalized-alpha + Newton on the
-sparse saddle-point system); this module runs the steps, stores the histories, computes the
+Each step is solved by :class:`morphlab.solve.stepper.Stepper` (generalized-alpha + Newton on
+the sparse saddle-point system); this module runs the steps, stores the histories, computes the
 diagnostics, reports progress, calls observers (the sensitivity strategies) and turns a failure
 into an error that carries the results up to the last converged step.
 """
@@ -15,12 +15,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import System, compile_model
-from ..compile.system import table_at, time_table
-from ..errors import ModelError
+from ..compile.system import TimeTable, table_at, time_table
+from ..errors import ModelError, SolverError
 from ..kernels.joints import constraint_violation_history
 from ..model.model import Model
+from ..results.result import Result
+from .linalg import Factor
 from .scheme import StepCoefficients
-from .stepper import Settings, State, Stepper
+from .settings import Settings, State
+from .stepper import Stepper
 
 
 @dataclass
@@ -31,20 +34,20 @@ class StepInfo:
     n: int
     prev: State | None
     state: State
-    lu: object
+    lu: Factor
     z: np.ndarray
     qh: np.ndarray
     vh: np.ndarray
     coef: StepCoefficients
     stepper: Stepper
     newton_history: list = field(default_factory=list)
-    table: tuple | None = None
+    table: TimeTable | None = None
 
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
               progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
               polish: int = 0, max_halvings: int = 0):
-    """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
+    """Run the time loop on a compiled system; returns a :class:`morphlab.results.result.Result`.
 
     ``observer(info: StepInfo)`` is called after the initial solve and after every converged
     step; the sensitivity strategies use it. On failure the raised :class:`SolverError` carries
@@ -61,11 +64,8 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                          "(sensitivity runs need one fixed step sequence)")
     if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
         raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
-    from ..results.result import Result
-
     settings.validate()
-    stepper = Stepper(system, settings, scale=scale)
-    stepper.polish = polish
+    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
     n_steps = settings.n_steps
     h = settings.h
     n_dof, n_con = system.n_dof, system.n_con
@@ -100,8 +100,6 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     def record(n, st, it):
         Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
         iters[n] = it
-
-    from ..errors import SolverError
 
     q_init = system.q0 if q0 is None else q0
     v_init = system.v0 if v0 is None else v0
@@ -145,42 +143,23 @@ def _print_progress(n, n_steps, t):
               flush=True)
 
 
-def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float = 0.8,
-             tol: float = 1e-10, max_iter: int = 12, stabilization: float = 0.5,
-             stabilization_damping: float = 1.0, constraint_form: str = "paper",
-             scheme: str = "arnold-bruls", progress: bool | Callable = False,
-             observer: Callable | None = None, max_halvings: int = 0, q0=None, v0=None,
-             newton: str = "full"):
-    """Simulate ``model`` from 0 to ``t_end`` with the generalized-alpha method.
+def simulate(model: Model | System, *, settings: Settings | None = None,
+             progress: bool | Callable = False, observer: Callable | None = None,
+             max_halvings: int = 0, q0=None, v0=None, **options):
+    """Simulate ``model`` from ``t_start`` (0) to ``t_end`` with the generalized-alpha method.
 
     Parameters
     ----------
     model : Model or System
         The mechanism (compiled here if needed).
-    t_end, dt : float
-        End time and time step [s]; ``t_end/dt`` is rounded up to whole steps.
-    rho_inf : float
-        Spectral radius at infinite frequency, in [0, 1] (1: no numerical dissipation).
-    tol : float
-        Newton stops when the position correction is below ``tol`` times the model size.
-    max_iter : int
-        Newton iteration limit per step.
-    newton : {"full", "modified"}
-        ``"full"``: the exact Newton matrix is factored at every iteration (quadratic
-        convergence; what the sensitivities reuse). ``"modified"``: a factorization is kept
-        over iterations and steps while the corrections contract fast (a faster primal when
-        the matrix changes slowly; not for sensitivity runs).
-    stabilization : float
-        ``omega h`` of the Baumgarte term (0 switches it off).
-    stabilization_damping : float
-        Damping ratio ``xi`` of the Baumgarte term.
-    scheme : {"arnold-bruls", "paper"}
-        Generalized-alpha form (:func:`step_coefficients`): ``"arnold-bruls"`` is second order
-        for every ``rho_inf``; ``"paper"`` is eq. 25–26 of the paper as printed (first order for
-        ``rho_inf < 1`` on nonlinear systems; identical at ``rho_inf = 1``).
-    constraint_form : {"paper", "endpoint"}
-        With ``scheme="paper"``: weighting of the acceleration constraint rows (module
-        docstring).
+    settings : Settings, optional
+        The run's options in one object; ``options`` replace its fields.
+    **options
+        The fields of :class:`~morphlab.solve.settings.Settings` (``t_end``, ``dt`` [s]
+        required without ``settings``; ``rho_inf`` 0.8, ``tol`` 1e-10, ``max_iter`` 12,
+        ``scheme`` "arnold-bruls" or "paper", ``newton`` "full" or "modified",
+        ``stabilization``, ``stabilization_damping``, ``constraint_form``, ``t_start``,
+        ``dense_max``, ``compiled_newton``).
     q0, v0 : (n_dof,), optional
         Start from these coordinates/velocities instead of the model's initial state (they
         must satisfy the constraints, e.g. a static solution: ``ml.static(m).q[-1]``).
@@ -200,13 +179,13 @@ def simulate(model: Model | System, *, t_end: float, dt: float, rho_inf: float =
 
     Raises
     ------
+    ModelError
+        Invalid model or settings.
     ConvergenceError, NonFiniteError, SingularMatrixError
         With ``error.result`` holding the steps completed before the failure.
     """
+    settings = Settings.of(settings, **options)
     system = model if isinstance(model, System) else compile_model(model)
-    settings = Settings(t_end=t_end, dt=dt, rho_inf=rho_inf, tol=tol, max_iter=max_iter,
-                        stabilization=stabilization, stabilization_damping=stabilization_damping,
-                        constraint_form=constraint_form, scheme=scheme, newton=newton)
     for name, x in (("q0", q0), ("v0", v0)):
         if x is not None and (np.shape(x) != (system.n_dof,) or not np.all(np.isfinite(x))):
             raise ModelError(f"{name} must be a finite array of shape ({system.n_dof},), got "

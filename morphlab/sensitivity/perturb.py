@@ -1,0 +1,188 @@
+"""Perturbed designs, compiled in one place for every sensitivity method (and the bench).
+
+A design variable ``p_i`` is differentiated through the user's ``build(p)``: its perturbed
+design ``p + delta e_i`` (``delta = i h`` with ``h = 1e-30`` for a complex step, a real step for
+finite differences) is built and compiled like the nominal one. This module checks that the
+perturbation keeps the model's structure and changes something, and forms what the direct
+method's pseudo-loads read: the design data of every perturbed design stacked, the parts of the
+model each variable changes, the time tables and the initial sensitivities.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from ..compile import System, compile_model, kernel_arrays, time_table
+from ..compile.system import SystemArrays, TimeTable
+from ..errors import SensitivityError
+from ..kernels.system import DESIGN_FIELDS, DesignArrays
+
+#: The complex step (Martins, Sturdza & Alonso 2003): exact to round-off for ``h`` this small.
+CS_STEP = 1e-30
+#: Every array of a System a design variable can change: the kernels' design data, the initial
+#: state, the stress maps and the time-dependent data's constants.
+DESIGN_DEPENDENT = DESIGN_FIELDS + ("q0", "v0", "elem_B", "con_c0", "load_F0", "torque_T0")
+
+
+def relative_steps(p0: dict, names: list[str], step: float) -> dict[str, float]:
+    """Finite-difference steps ``step |p_i|`` (``step`` where ``p_i = 0``): relative, so that a
+    density of 2.7e-9 t/mm³ does not get an absolute step."""
+    return {v: step * (abs(p0[v]) if p0[v] != 0.0 else 1.0) for v in names}
+
+
+def check_same_layout(a: System, b: System, name: str) -> None:
+    """Raise :class:`SensitivityError` if ``b`` (a perturbed design) has another structure."""
+    same = (a.n_dof == b.n_dof and a.n_con == b.n_con and a.nnz == b.nnz
+            and np.array_equal(a.indices, b.indices) and np.array_equal(a.indptr, b.indptr))
+    if not same:
+        raise SensitivityError(
+            f"changing design variable {name!r} changes the model's structure (DOFs, "
+            "constraints or sparsity pattern); build(p) must keep the topology fixed")
+
+
+def uses_variable(sys_p: System, sys0: System, t_end: float) -> bool:
+    """Does the perturbed system differ from the nominal one anywhere (arrays or the
+    time-dependent data at three times)?"""
+    if any(not np.array_equal(getattr(sys_p, k), getattr(sys0, k)) for k in DESIGN_DEPENDENT):
+        return True
+    return any(not np.array_equal(x, y)
+               for t in (0.0, 0.37 * t_end, t_end)
+               for x, y in zip(sys_p.time_arrays(t), sys0.time_arrays(t)))
+
+
+def compile_perturbed(build: Callable, p0: dict, name: str, delta, sys0: System) -> System:
+    """``build(p0 + delta e_name)`` compiled like ``sys0`` (complex128 for a complex
+    ``delta``), its structure checked."""
+    p = dict(p0)
+    p[name] = p0[name] + delta
+    dtype = np.complex128 if isinstance(delta, complex) else np.float64
+    sys_p = compile_model(build(p), dtype=dtype, like=sys0)
+    check_same_layout(sys0, sys_p, name)
+    return sys_p
+
+
+def complex_systems(build: Callable, p0: dict, names: list[str], sys0: System,
+                    t_end: float) -> list[System]:
+    """The complex-step designs of every variable; a variable ``build`` does not use raises."""
+    out = []
+    for v in names:
+        sys_p = compile_perturbed(build, p0, v, 1j * CS_STEP, sys0)
+        if not uses_variable(sys_p, sys0, t_end):
+            raise SensitivityError(
+                f"design variable {v!r} is not used by build: no compiled array, initial "
+                "state or load changes with it, so its gradient would be silently zero")
+        out.append(sys_p)
+    return out
+
+
+def shifted_systems(build: Callable, p0: dict, names: list[str], sys0: System,
+                    steps: dict[str, float], sign: float = 1.0) -> list[System]:
+    """The designs ``p0 + sign steps[v] e_v`` of every variable (finite differences)."""
+    return [compile_perturbed(build, p0, v, sign * steps[v], sys0) for v in names]
+
+
+# ------------------------------------------------------------------ what the pseudo-loads read
+class PseudoLoadData(NamedTuple):
+    """What the direct method's pseudo-load kernels (:mod:`morphlab.kernels.direct`) read.
+
+    ``S_nom``: the nominal kernel arrays in the perturbation's dtype; ``P``: the design data of
+    the n_x perturbed designs; ``parts``: the parts of the model each variable changes (CSR
+    over the variables, :func:`pack_parts`); ``TAB`` / ``tab0``: the time tables of every
+    design (leading axes (n_t, n_x)) and the nominal one; ``pert`` (n_x,): ``i h`` or the
+    steps; ``dq0``, ``dv0`` (n_dof, n_x): the initial sensitivities.
+    """
+
+    S_nom: SystemArrays
+    P: DesignArrays
+    parts: tuple
+    TAB: TimeTable
+    tab0: TimeTable
+    pert: np.ndarray
+    dtype: np.dtype
+    dq0: np.ndarray
+    dv0: np.ndarray
+
+
+def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
+                     times: np.ndarray) -> PseudoLoadData:
+    """Built once per run from the perturbed systems ``psys`` (their perturbations ``pert``)."""
+    complex_step = np.iscomplexobj(pert)
+    dt = np.dtype(np.complex128 if complex_step else np.float64)
+    S_nom = kernel_arrays(sys0, dt)  # integer tables shared with the primal's
+    S_all = [kernel_arrays(s, dt) for s in psys]
+    P = DesignArrays(*(np.ascontiguousarray(np.stack([getattr(Sk, k) for Sk in S_all]))
+                       for k in DESIGN_FIELDS))
+    shared: dict = {}
+    tab0 = time_table(sys0, times, dt, cache=shared)
+    tables = [time_table(s, times, dt, cache=shared) for s in psys]
+    parts = pack_parts([variable_parts(sys0, S_nom, Sk, tab0, tb)
+                        for Sk, tb in zip(S_all, tables)])
+    TAB = TimeTable(*(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
+                      for k in range(5)))
+    if complex_step:
+        dq0 = np.stack([np.imag(s.q0) / CS_STEP for s in psys], axis=1)
+        dv0 = np.stack([np.imag(s.v0) / CS_STEP for s in psys], axis=1)
+    else:
+        dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
+        dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
+    return PseudoLoadData(S_nom, P, parts, TAB, tab0, pert, dt, dq0, dv0)
+
+
+def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
+    """Per entry along axis ``axis_keep``: does any value of ``a`` differ from ``b``?"""
+    d = np.asarray(a) != np.asarray(b)
+    if d.ndim == 0:
+        return d
+    d = np.moveaxis(d, axis_keep, 0)
+    return d.reshape(d.shape[0], -1).any(axis=1) if d.size else np.zeros(d.shape[0], bool)
+
+
+def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeTable,
+                   tabi: TimeTable) -> tuple:
+    """The bodies, elements, flexible coordinates, constraint rows, loads and torques whose
+    data differ between the nominal arrays ``S0`` / time table ``tab0`` and a perturbed
+    design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must evaluate. A changed
+    element brings its body and its coordinates."""
+    n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
+
+    def changed(name):
+        return _changed(getattr(Si, name), getattr(S0, name))
+
+    damp = changed("body_damp")
+    elem = (changed("elem_M") | changed("elem_St") | changed("elem_K")
+            | damp[sys0.elem_body]) if n_elem else np.zeros(0, bool)
+    flex = changed("flex_IS") | changed("flex_I0S") | changed("flex_I0IS")
+    fdof = sys0.elem_fdof[elem]
+    flex[fdof[fdof >= 0]] = True
+    body = changed("body_scal") | damp
+    if np.any(Si.gravity != S0.gravity):  # gravity acts on every body and every coordinate
+        body[:] = True
+        flex[:] = True
+    for b in range(n_body):
+        lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
+        body[b] |= bool(flex[lo:hi].any())
+        if damp[b]:
+            flex[lo:hi] = True
+    body[sys0.elem_body[elem]] = True
+    # time tables (n_t, ...): a row changes if it changes at any time
+    rows = (changed("con_u0") | _changed(tabi.C, tab0.C, 1) | _changed(tabi.CD, tab0.CD, 1)
+            | _changed(tabi.CDD, tab0.CDD, 1))
+    loads = changed("load_u0") | _changed(tabi.F, tab0.F, 1)
+    torques = _changed(tabi.T, tab0.T, 1)
+    return tuple(np.flatnonzero(m).astype(np.int64)
+                 for m in (body, elem, flex, rows, loads, torques))
+
+
+def pack_parts(parts: list) -> tuple:
+    """Per-variable index lists as ``(offsets, indices)`` pairs (CSR over the variables)."""
+    out = []
+    for kind in range(6):
+        lists = [p[kind] for p in parts]
+        off = np.zeros(len(lists) + 1, dtype=np.int64)
+        off[1:] = np.cumsum([len(x) for x in lists])
+        idx = np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64)
+        out += [off, idx]
+    return tuple(out)
