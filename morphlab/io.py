@@ -397,8 +397,8 @@ def save(result, path) -> None:
     Parameters
     ----------
     result : Result
-        From :func:`~morphlab.solve.timeloop.simulate` or :func:`~morphlab.solve.statics.static` (also the
-        partial ``error.result`` of a failed run).
+        From :func:`morphlab.simulate` or :func:`morphlab.static` (also the partial
+        ``error.result`` of a failed run).
     path : str or os.PathLike
         Destination, used as given (``.npz`` is customary).
 
