@@ -297,3 +297,32 @@ def csc_residual(data, indices, indptr, x, b, r):
             rr += r[j, i] * r[j, i]
             bb += b[j, i] * b[j, i]
     return np.sqrt(rr), np.sqrt(bb)
+
+
+@njit(cache=True)
+def csc_transposed_product(data, indices, indptr, n_cols, x, out):
+    """``out[:n_cols] -= A[:, :n_cols]^T x`` for the CSC matrix ``A = (data, indices, indptr)``
+    and ``x`` (n, m): the transposed products of the adjoint sweep."""
+    m = x.shape[1]
+    for j in range(n_cols):
+        for p in range(indptr[j], indptr[j + 1]):
+            row = indices[p]
+            aij = data[p]
+            for i in range(m):
+                out[j, i] -= aij * x[row, i]
+
+
+@njit(cache=True)
+def csc_residual_transposed(data, indices, indptr, x, b, r):
+    """``r = b - A^T x`` for the CSC matrix ``A`` and ``x`` (n, m); returns
+    ``(|r|_F, |b|_F)``."""
+    n = indptr.shape[0] - 1
+    r[:, :] = b
+    csc_transposed_product(data, indices, indptr, n, x, r)
+    rr = 0.0
+    bb = 0.0
+    for j in range(n):
+        for i in range(x.shape[1]):
+            rr += r[j, i] * r[j, i]
+            bb += b[j, i] * b[j, i]
+    return np.sqrt(rr), np.sqrt(bb)

@@ -2,6 +2,7 @@
 its factorizations and its residual kernels."""
 
 from .api import SensitivityResult, sensitivities
-from .strategies import ComplexStep, Direct, FiniteDifference
+from .strategies import Adjoint, ComplexStep, Direct, FiniteDifference
 
-__all__ = ["ComplexStep", "Direct", "FiniteDifference", "SensitivityResult", "sensitivities"]
+__all__ = ["Adjoint", "ComplexStep", "Direct", "FiniteDifference", "SensitivityResult",
+           "sensitivities"]

@@ -99,6 +99,10 @@ class SensitivityResult:
     def derivative(self, fn: Callable[[Result], np.ndarray]) -> np.ndarray:
         """``d fn(result) / d p`` for any complex-safe accessor ``fn`` (e.g. ``lambda r:
         r.stress("skin")``); shape ``fn(result).shape + (n_x,)``."""
+        if len(self._perturbed) != len(self.variables):
+            raise SensitivityError(
+                f"method {self.method!r} keeps no perturbed histories: it differentiates the "
+                "given responses only; use method='direct' for derivatives of whole histories")
         cols = [self._strategy.column(fn, self.result, pert, self._steps.get(name))
                 for name, pert in zip(self.variables, self._perturbed)]
         return np.stack(cols, axis=-1)
@@ -233,6 +237,9 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
 def _differentiate(strategy, responses, run, names, steps) -> tuple[dict, dict]:
     """Values of the responses on the primal result and their derivatives over the perturbed
     results (complex step over a complex result, or differences)."""
+    if run.gradients is not None:  # the strategy differentiated the responses itself
+        return dict(run.values), {r: {v: float(g[i]) for i, v in enumerate(names)}
+                                  for r, g in run.gradients.items()}
     values: dict = {}
     gradients: dict = {}
     for rname, fn in responses.items():

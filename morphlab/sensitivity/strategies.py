@@ -26,6 +26,7 @@ from ..errors import SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
+from .adjoint import adjoint_run
 from .direct import direct_run
 from .histories import HISTORIES, to_store
 from .perturb import CS_STEP, pseudo_load_data, relative_steps, shifted_systems
@@ -50,13 +51,17 @@ class Setup:
 
 
 class Run(NamedTuple):
-    """What a strategy returns (module docstring)."""
+    """What a strategy returns (module docstring). A strategy that differentiates the
+    responses itself (the adjoint) returns their ``values`` and ``gradients`` (name -> (n_x,))
+    and no perturbed results."""
 
     result: Result
     perturbed: list
     state: dict
     timing: dict
     stats: dict
+    values: dict | None = None
+    gradients: dict | None = None
 
 
 def _timed_runs(setup: Setup, systems_per_variable) -> Run:
@@ -186,22 +191,56 @@ class FiniteDifference:
         return (np.asarray(fn(plus)) - np.asarray(fn(minus))) / (2.0 * step)
 
 
+@dataclass(frozen=True)
+class Adjoint:
+    """The discrete adjoint of the time loop (:mod:`morphlab.sensitivity.adjoint`): one
+    backward sweep for all responses, the variables entering only through the derivatives of
+    the compiled data. Every response needs a ``vjp`` (the factories of
+    :mod:`morphlab.responses` have one).
+
+    Parameters
+    ----------
+    refine, refine_tol :
+        As for :class:`Direct`: refinement of the transposed solves against the exact
+        converged matrix.
+    """
+
+    refine: int = 1
+    refine_tol: float = 1e-12
+
+    name = "adjoint"
+    complex_results = False
+
+    def run(self, setup: Setup) -> Run:
+        times = setup.settings.t_start + setup.settings.h * np.arange(setup.settings.n_steps + 1)
+        data = pseudo_load_data(setup.sys0, setup.complex_systems,
+                                np.full(len(setup.names), 1j * CS_STEP), times)
+        res0, values, gradients, timing, stats = adjoint_run(
+            setup.sys0, setup.settings, setup.responses, setup.complex_systems, data,
+            refine=self.refine, refine_tol=self.refine_tol, progress=setup.progress)
+        return Run(res0, [], {}, timing, stats, values, gradients)
+
+
+
 def _check_step(step) -> None:
     if not (isinstance(step, float) and 0 < step < 1):
         raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
 
 
 #: The method strings of :func:`morphlab.sensitivities` and the strategies they stand for.
-ALIASES = ("direct", "direct-fd", "complex-step", "forward-difference", "central-difference")
+ALIASES = ("direct", "direct-fd", "adjoint", "complex-step", "forward-difference",
+           "central-difference")
 
 
 def resolve(method, step: float = 1e-6, refine: int = 1):
     """A strategy object for ``method`` (a strategy, or one of :data:`ALIASES`; ``step`` and
     ``refine`` configure the aliases)."""
-    if isinstance(method, (Direct, ComplexStep, FiniteDifference)):
+    if isinstance(method, (Direct, Adjoint, ComplexStep, FiniteDifference)):
         return method
     if method == "direct":
         return Direct(refine=refine)
+    if method == "adjoint":
+        return Adjoint(refine=refine)
     if method == "direct-fd":
         return Direct(partials="forward-difference", step=step, refine=refine)
     if method == "complex-step":
@@ -212,5 +251,5 @@ def resolve(method, step: float = 1e-6, refine: int = 1):
                            "a strategy (Direct(), ComplexStep(), FiniteDifference())")
 
 
-__all__ = ["ALIASES", "ComplexStep", "Direct", "FiniteDifference", "HISTORIES", "Run", "Setup",
-           "resolve"]
+__all__ = ["ALIASES", "Adjoint", "ComplexStep", "Direct", "FiniteDifference", "HISTORIES", "Run",
+           "Setup", "resolve"]

@@ -1,0 +1,118 @@
+"""The discrete adjoint against the direct method and the whole-run complex step.
+
+The adjoint is the exact transpose of the direct recursion (docs/theory.md §7): on the same
+runs the two must agree to round-off, whatever the variable (section, material, load, mass,
+a shape variable that moves the initial configuration and a beam's nodes in its frame) and the
+scheme (the paper's weighting adds an old-level share to every step). The responses here carry
+their own ``vjp``, written out in this file, so the test exercises the sweep itself: a node
+position at the final time (state terms at one time and a term through the beam's node table),
+a constraint multiplier at one time and the time average of another (a term at every time).
+"""
+
+import numpy as np
+import pytest
+from test_sensitivity_direct import CASES, RUN, responses_for
+
+import morphlab as ml
+from morphlab.results.gradients import ResponseVJP
+
+
+class NodeY:
+    """y of a beam node at the final time: ``R_y + sin(th) (X_x + w_x) + cos(th) (X_y + w_y)``."""
+
+    def __init__(self, body, node):
+        self.body, self.node = body, node
+
+    def __call__(self, res):
+        return res.node_positions(self.body, -1)[self.node, 1]
+
+    def vjp(self, res):
+        info = res.system.body(self.body)
+        q = np.real(res.q[-1])
+        th = q[info.ref[2]]
+        c, s = np.cos(th), np.sin(th)
+        X = np.real(info.X[self.node])
+        nd = info.node_dofs[self.node]
+        wx, wy = (q[d] if d >= 0 else 0.0 for d in nd[:2])
+        g = np.zeros(res.system.n_dof)
+        g[info.ref[1]] = 1.0
+        g[info.ref[2]] = c * (X[0] + wx) - s * (X[1] + wy)
+        for d, val in zip(nd[:2], (s, c)):
+            if d >= 0:
+                g[d] = val
+        dX = np.zeros(np.shape(info.X))
+        dX[self.node] = (s, c)
+        return ResponseVJP(np.real(self(res)), terms={res.n_t - 1: {"q": g}},
+                           data={f"body:{self.body}:X": dX})
+
+
+class Multiplier:
+    """A constraint multiplier at one time, or its time average (``mean=True``)."""
+
+    def __init__(self, row, mean=False):
+        self.row, self.mean = row, mean
+
+    def _i(self, res):
+        return res.system.con_names.index(self.row)
+
+    def __call__(self, res):
+        lam = res.lam[:, self._i(res)]
+        return np.mean(lam) if self.mean else lam[-1]
+
+    def vjp(self, res):
+        e = np.zeros(res.system.n_con)
+        e[self._i(res)] = 1.0
+        value = np.real(self(res))
+        if self.mean:
+            return ResponseVJP(value, stream=lambda n: {"lam": e / res.n_t})
+        return ResponseVJP(value, terms={res.n_t - 1: {"lam": e}})
+
+
+def adjoint_responses(name):
+    build, p0, _ = responses_for(name)
+    body, joint = ("beam", "pivot") if name == "pendulum" else ("coupler", "D")
+    n_nodes = build(p0).body(body).n_nodes
+    return build, p0, {"node_y": NodeY(body, n_nodes - 1),
+                       "reaction": Multiplier(f"{joint}.y"),
+                       "mean_reaction": Multiplier(f"{joint}.x", mean=True)}
+
+
+@pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
+@pytest.mark.parametrize("name", CASES)
+def test_adjoint_equals_direct(name, scheme):
+    """Both solve the same linear recursion with the same factors, forwards and transposed:
+    agreement to round-off of the recursion (measured <= 4e-12 relative); 1e-10 asserted."""
+    build, p0, resp = adjoint_responses(name)
+    d = ml.sensitivities(build, p0, resp, method="direct", scheme=scheme, **RUN)
+    a = ml.sensitivities(build, p0, resp, method="adjoint", scheme=scheme, **RUN)
+    assert a.method == "adjoint" and a.values == d.values
+    for r in resp:
+        scale = max(abs(g) for g in d.gradients[r].values())
+        for v in p0:
+            assert abs(a.gradients[r][v] - d.gradients[r][v]) <= 1e-10 * scale, (r, v)
+
+
+def test_adjoint_equals_the_whole_run_complex_step():
+    """Against the reference without truncation error: as tight as the direct method is
+    (tests/test_sensitivity_direct.py: 1e-8 of each response's gradient scale)."""
+    build, p0, resp = adjoint_responses("mechanism")
+    a = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    cs = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
+    for r in resp:
+        scale = max(abs(g) for g in cs.gradients[r].values())
+        for v in p0:
+            assert abs(a.gradients[r][v] - cs.gradients[r][v]) <= 1e-8 * scale, (r, v)
+
+
+def test_a_response_without_vjp_is_refused_by_name():
+    build, p0, resp = adjoint_responses("pendulum")
+    resp = dict(resp, plain=lambda r: r.q[-1, 0])
+    with pytest.raises(ml.SensitivityError, match="'plain'.*vjp.*method='direct'"):
+        ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+
+
+def test_adjoint_has_no_history_derivatives():
+    build, p0, resp = adjoint_responses("pendulum")
+    a = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    with pytest.raises(ml.SensitivityError, match="method='direct'"):
+        a.derivative(lambda r: r.q)
