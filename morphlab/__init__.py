@@ -10,9 +10,11 @@ from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
     FormatError,
+    Interrupted,
     ModelError,
     MorphlabError,
     NonFiniteError,
+    ResourceError,
     SensitivityError,
     SingularMatrixError,
     SolverError,
@@ -47,10 +49,9 @@ def __getattr__(name: str):
 
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
-    "Linear", "Model",
-    "ModelError", "MorphlabError", "NonFiniteError", "Profile", "Ramp", "Result", "RigidBody",
-    "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
-    "SmoothStep", "SolverError", "State", "System", "airfoil", "compile_model", "io",
-    "morphing", "plots", "responses", "sensitivities", "simulate", "static", "warmup",
-    "__version__",
+    "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Profile",
+    "Ramp", "ResourceError", "Result", "RigidBody", "SensitivityError", "SensitivityResult",
+    "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError", "State", "System",
+    "airfoil", "compile_model", "io", "morphing", "plots", "responses", "sensitivities",
+    "simulate", "static", "warmup", "__version__",
 ]

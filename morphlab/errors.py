@@ -56,3 +56,21 @@ class SingularMatrixError(SolverError):
 
 class NonFiniteError(SolverError):
     """A NaN or Inf appeared in the residual or the solution."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run stopped by an interrupt (Ctrl-C / SIGINT, or a KeyboardInterrupt raised by an
+    observer or a progress callback). A :class:`KeyboardInterrupt`, so code that stops on
+    Ctrl-C keeps doing so; ``result`` holds the steps converged before it, ``time`` and
+    ``step`` the last of them."""
+
+    def __init__(self, message, *, time=None, step=None, result=None):
+        super().__init__(message)
+        self.time = time
+        self.step = step
+        self.result = result
+
+
+class ResourceError(MorphlabError, MemoryError):
+    """A run needs more memory than the machine has available (the message says how much and
+    what to change)."""

@@ -31,6 +31,7 @@ class Result:
         Lagrange multipliers (constraint forces/torques of each row).
     newton_iterations : (n_t,) int
         Newton iterations (= factorizations) of each step; 1 for the initial solve.
+    q, v, a, lam may be None: the histories a run did not keep (``simulate(store=...)``).
     constraint_violation, velocity_violation : (n_t,)
         ``max |Phi|`` and ``max |Phi'|`` after each step.
     status, message : str
@@ -51,10 +52,22 @@ class Result:
     message: str = ""
     n_factorizations: int = 0
     wall_time: float = 0.0
-    newton_history: list = field(default_factory=list, repr=False)
     scale: float = 1.0
     step_reductions: list = field(default_factory=list)
     energy_cache: dict | None = field(default=None, repr=False, compare=False)
+    newton_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
+    newton_log_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64),
+                                           repr=False)
+
+    @property
+    def newton_history(self) -> list:
+        """``(|R|, position correction)`` of every Newton iteration of every step after the
+        initial solve: a list over the steps of lists of pairs (from the compact
+        ``newton_log`` (k, 2), whose rows of step ``n`` are
+        ``newton_log_offsets[n]:newton_log_offsets[n + 1]``)."""
+        off = self.newton_log_offsets
+        return [[tuple(r) for r in self.newton_log[off[n]:off[n + 1]].tolist()]
+                for n in range(1, off.size - 1)]
 
     # ---- coordinates by name
     @property
@@ -175,6 +188,9 @@ class Result:
 
 def energy(res: Result) -> dict:
     """Kinetic, strain and gravitational energy, damping dissipation and external work."""
+    if res.q is None or res.v is None:
+        raise ModelError("the energy needs the histories of q and v: run with store "
+                         "including 'q' and 'v'")
     s = res.system
     S = kernel_arrays(s)
     n, n_dof = s.n, s.n_dof

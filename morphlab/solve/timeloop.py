@@ -8,6 +8,8 @@ into an error that carries the results up to the last converged step.
 
 from __future__ import annotations
 
+import signal
+import threading
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,14 +18,14 @@ import numpy as np
 
 from ..compile import System, compile_model
 from ..compile.system import TimeTable, table_at, time_table
-from ..errors import ModelError, SolverError
-from ..kernels.joints import constraint_violation_history
+from ..errors import Interrupted, ModelError, SolverError
 from ..model.model import Model
 from ..results.result import Result
 from .linalg import Factor
 from .scheme import StepCoefficients
 from .settings import Settings, State
 from .stepper import Stepper
+from .store import HISTORIES, HistoryStore, check_memory
 
 
 @dataclass
@@ -46,15 +48,18 @@ class StepInfo:
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
               progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
-              polish: int = 0, max_halvings: int = 0):
-    """Run the time loop on a compiled system; returns a :class:`morphlab.results.result.Result`.
+              polish: int = 0, max_halvings: int = 0, store=HISTORIES, memmap=None) -> Result:
+    """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
 
     ``observer(info: StepInfo)`` is called after the initial solve and after every converged
     step; the sensitivity strategies use it. On failure the raised :class:`SolverError` carries
-    the results up to the last converged step as ``error.result``. ``max_halvings > 0`` retries
-    a failed step with up to ``2**max_halvings`` sub-steps (not with an observer: sensitivity
-    runs need the same step sequence for every design); the results stay on the regular grid
-    and ``result.step_reductions`` lists ``(t, n_substeps)`` of each retried step.
+    the results up to the last converged step as ``error.result``; an interrupt (Ctrl-C, or a
+    KeyboardInterrupt from the observer or the progress callback) raises
+    :class:`~morphlab.errors.Interrupted` (a KeyboardInterrupt) carrying them the same way.
+    ``max_halvings > 0`` retries a failed step with up to ``2**max_halvings`` sub-steps (not
+    with an observer: sensitivity runs need the same step sequence for every design); the
+    results stay on the regular grid and ``result.step_reductions`` lists ``(t, n_substeps)``
+    of each retried step. ``store``, ``memmap``: :class:`~morphlab.solve.store.HistoryStore`.
     """
     if settings.newton == "modified" and observer is not None:
         raise ModelError("newton='modified' cannot be combined with an observer: the "
@@ -65,73 +70,85 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
         raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
     settings.validate()
-    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
     n_steps = settings.n_steps
-    h = settings.h
-    n_dof, n_con = system.n_dof, system.n_con
-    dt = system.dtype
-    t = settings.t_start + h * np.arange(n_steps + 1)
-    Q = np.zeros((n_steps + 1, n_dof), dtype=dt)
-    V = np.zeros_like(Q)
-    A = np.zeros_like(Q)
-    LAM = np.zeros((n_steps + 1, n_con), dtype=dt)
-    iters = np.zeros(n_steps + 1, dtype=np.int64)
-    viol = np.zeros(n_steps + 1)
-    vviol = np.zeros(n_steps + 1)
-    histories: list = []
+    check_memory(system, n_steps + 1, store, memmap)
+    t = settings.t_start + settings.h * np.arange(n_steps + 1)
+    hist = HistoryStore(system, t, store, memmap)
+    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
+    table = time_table(system, t)
     reductions: list = []
     t_wall = _time.perf_counter()
 
-    def make_result(n_done, status, message):
-        sl = slice(0, n_done + 1)
-        if n_con and n_done >= 0:
-            constraint_violation_history(
-                Q[sl], V[sl], np.ascontiguousarray(table[0][sl]),
-                np.ascontiguousarray(table[1][sl]), system.con_kind, system.con_dofs,
-                np.ascontiguousarray(system.con_u0, dtype=dt), viol[sl], vviol[sl])
-        return Result(system=system, settings=settings, t=t[sl].copy(), q=Q[sl].copy(),
-                      v=V[sl].copy(), a=A[sl].copy(), lam=LAM[sl].copy(),
-                      newton_iterations=iters[sl].copy(), constraint_violation=viol[sl].copy(),
-                      velocity_violation=vviol[sl].copy(), status=status, message=message,
+    def make_result(status, message):
+        return Result(system=system, settings=settings, status=status, message=message,
                       n_factorizations=stepper.n_factorizations,
-                      wall_time=_time.perf_counter() - t_wall, newton_history=histories,
-                      scale=stepper.scale, step_reductions=list(reductions))
+                      wall_time=_time.perf_counter() - t_wall, scale=stepper.scale,
+                      step_reductions=list(reductions), **hist.result_fields())
 
-    def record(n, st, it):
-        Q[n], V[n], A[n], LAM[n] = st.q, st.v, st.a, st.lam
-        iters[n] = it
-
-    q_init = system.q0 if q0 is None else q0
-    v_init = system.v0 if v0 is None else v0
-    table = time_table(system, t)
-    try:
-        st, lu, z = stepper.initial(t[0], q_init.astype(dt), v_init.astype(dt),
-                                    ta=table_at(table, 0))
-    except SolverError as err:
-        err.result = make_result(-1, "failed", str(err))
-        raise
-    record(0, st, 1)
-    if observer is not None:
-        observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper,
-                          table=table))
+    dt = system.dtype
+    q_init = (system.q0 if q0 is None else q0).astype(dt)
+    v_init = (system.v0 if v0 is None else v0).astype(dt)
     report = progress if callable(progress) else (_print_progress if progress else None)
-    for n in range(1, n_steps + 1):
+    with _Interrupts() as interrupts:
         try:
-            new, lu, it, z, qh, vh, R_hist, hist = stepper.advance(
-                st, float(t[n]), n, table_at(table, n - 1), table_at(table, n), max_halvings,
-                reductions)
+            st, lu, z = stepper.initial(t[0], q_init, v_init, ta=table_at(table, 0))
+            hist.record(0, st, 1, (), table_at(table, 0))
+            if observer is not None:
+                observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper,
+                                  table=table))
+            for n in range(1, n_steps + 1):
+                interrupts.check()
+                new, lu, it, z, qh, vh, R_hist, newton = stepper.advance(
+                    st, float(t[n]), n, table_at(table, n - 1), table_at(table, n),
+                    max_halvings, reductions)
+                hist.record(n, new, it, newton, table_at(table, n))
+                if observer is not None:
+                    observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper,
+                                      newton, table=table))
+                st = new
+                if report is not None:
+                    report(n, n_steps, float(t[n]))
         except SolverError as err:
-            err.result = make_result(n - 1, "failed", str(err))
+            err.result = make_result("failed", str(err))
             raise
-        histories.append(hist)
-        record(n, new, it)
-        if observer is not None:
-            observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper, hist,
-                              table=table))
-        st = new
-        if report is not None:
-            report(n, n_steps, float(t[n]))
-    return make_result(n_steps, "ok", f"completed {n_steps} steps")
+        except KeyboardInterrupt as err:
+            k = hist.n_done
+            stop = Interrupted(f"interrupted after step {k} (t={t[max(k, 0)]:.6g})",
+                               time=float(t[k]) if k >= 0 else None, step=k,
+                               result=make_result("interrupted", "interrupted by the user"))
+            raise stop from err
+    return make_result("ok", f"completed {n_steps} steps")
+
+
+class _Interrupts:
+    """Ctrl-C during a run: while the default SIGINT handler is installed (main thread), a
+    first SIGINT only sets a flag, which the loop checks between steps (so it never arrives
+    inside a compiled call, whose result would then be lost); a second one interrupts at
+    once."""
+
+    def __init__(self):
+        self.flag = False
+        self.previous = None
+
+    def _handler(self, signum, frame):
+        if self.flag:
+            raise KeyboardInterrupt
+        self.flag = True
+
+    def check(self) -> None:
+        if self.flag:
+            raise KeyboardInterrupt
+
+    def __enter__(self):
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+        return False
 
 
 def _print_progress(n, n_steps, t):
@@ -145,7 +162,8 @@ def _print_progress(n, n_steps, t):
 
 def simulate(model: Model | System, *, settings: Settings | None = None,
              progress: bool | Callable = False, observer: Callable | None = None,
-             max_halvings: int = 0, q0=None, v0=None, **options):
+             max_halvings: int = 0, q0=None, v0=None, store=HISTORIES, memmap=None,
+             **options):
     """Simulate ``model`` from ``t_start`` (0) to ``t_end`` with the generalized-alpha method.
 
     Parameters
@@ -171,6 +189,11 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
         Automatic step reduction: a step whose Newton iteration fails is retried with 2, 4,
         ... sub-steps, up to ``2**max_halvings`` (0: off, the default). Retried steps are
         listed in ``result.step_reductions``.
+    store : tuple of {"q", "v", "a", "lam"}
+        The histories kept (default all four); the others are ``None`` in the Result. Each
+        takes ``n_t x width x 8`` bytes (16 for a complex run).
+    memmap : path, optional
+        Keep the histories in memory-mapped ``.npy`` files in this folder instead of memory.
 
     Returns
     -------
@@ -181,6 +204,10 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
     ------
     ModelError
         Invalid model or settings.
+    ResourceError
+        The histories asked for do not fit the memory available (the message gives the size).
+    Interrupted
+        Ctrl-C (a KeyboardInterrupt) with ``error.result`` holding the completed steps.
     ConvergenceError, NonFiniteError, SingularMatrixError
         With ``error.result`` holding the steps completed before the failure.
     """
@@ -192,4 +219,4 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
                              f"shape {np.shape(x)}")
     return integrate(system, settings, observer=observer, progress=progress,
                      max_halvings=max_halvings, q0=None if q0 is None else np.asarray(q0),
-                     v0=None if v0 is None else np.asarray(v0))
+                     v0=None if v0 is None else np.asarray(v0), store=store, memmap=memmap)
