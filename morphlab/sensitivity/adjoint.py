@@ -31,6 +31,7 @@ import time as _time
 import numpy as np
 
 from ..compile import System
+from ..compile.system import table_at
 from ..kernels.direct import (
     csc_residual_transposed,
     csc_transposed_product,
@@ -40,30 +41,82 @@ from ..kernels.direct import (
 from ..results.gradients import ResponseVJP, response_vjp, system_data
 from ..solve.settings import Settings
 from ..solve.timeloop import StepInfo, integrate
+from .histories import to_store
 from .perturb import CS_STEP, PseudoLoadData
 
 
-class _Recorder:
-    """Forward observer: keeps every converged step's state, factorization and last Newton
-    correction, with the coefficients and tables it was solved with."""
+def _state_bytes(st) -> int:
+    return sum(x.nbytes for x in (st.q, st.v, st.a, st.lam, st.g))
 
-    def __init__(self):
-        self.steps: list = []  # (n, state, factor, last correction, coefficients)
+
+class _Recorder:
+    """Forward observer: keeps every converged step — ``(n, state, factorization, last Newton
+    correction, coefficients)`` — while they fit ``budget`` bytes. Beyond it the run keeps
+    only checkpoints, the state after every ``K``-th step (``K`` chosen so that one segment of
+    ``K`` recomputed steps takes half the budget), and the backward sweep recomputes the
+    steps of each segment from its checkpoint (:func:`_segments`)."""
+
+    def __init__(self, budget: int):
+        self.budget = budget
+        self.steps: list = []
+        self.bytes = 0
+        self.K: int | None = None
+        self.checkpoints: dict = {}  # step -> state
         self.stepper = None
         self.table = None
 
     def __call__(self, info: StepInfo) -> None:
         self.stepper, self.table = info.stepper, info.table
         last = info.newton_history[-1][1] if info.newton_history else 0.0
+        if self.K is not None:
+            if info.n % self.K == 0:
+                self.checkpoints[info.n] = info.state
+            return
         self.steps.append((info.n, info.state, info.lu, last, info.coef))
+        self.bytes += _state_bytes(info.state) + info.lu.nbytes + 500
+        if self.bytes > self.budget:  # from now on: checkpoints
+            self.K = max(1, int(self.budget // (2 * self.bytes / len(self.steps))))
+            self.checkpoints = {n: st for n, st, *_ in self.steps if n % self.K == 0}
+            self.steps = []
 
 
-def _explicit(sys0: System, rec: _Recorder, data: PseudoLoadData, j: int) -> np.ndarray:
-    """``-∂R_n/∂p`` (n, n_x) of recorded step ``j`` at its converged state (both levels): the
-    explicit part of the direct method's right-hand side."""
-    n, st, _, _, coef = rec.steps[j]
-    prev = rec.steps[j - 1][1] if j > 0 else None
+def _segments(rec: _Recorder, settings: Settings, q0, v0):
+    """The recorded steps in segments, last segment first: ``(steps, prev)`` with ``steps`` a
+    list of ``(n, state, factor, last, coef)`` in time order and ``prev`` the state before
+    the first of them (None for the initial solve). Kept steps come as one segment; with
+    checkpoints each segment's steps are recomputed from the checkpoint before them, with the
+    run's settings and scale."""
+    if rec.K is None:
+        yield rec.steps, None
+        return
     stp = rec.stepper
+    fresh = type(stp).dynamic(stp.system, settings, scale=stp.scale)
+    table = rec.table
+    n_steps = settings.n_steps
+    t = settings.t_start + settings.h * np.arange(n_steps + 1)
+    for c in sorted(rec.checkpoints, reverse=True):
+        if c == n_steps:
+            continue
+        steps = []
+        if c == 0:
+            st, lu, _ = fresh.initial(t[0], q0, v0, ta=table_at(table, 0))
+            steps.append((0, st, lu, 0.0, fresh.init_coef))
+            prev = None
+        else:
+            st = prev = rec.checkpoints[c]
+        for n in range(c + 1, min(c + rec.K, n_steps) + 1):
+            new, lu, _, _, _, _, _, hist = fresh.step(st, float(t[n]), n, table_at(table, n - 1),
+                                                    table_at(table, n))
+            steps.append((n, new, lu, hist[-1][1] if hist else 0.0, fresh.step_coef))
+            st = new
+        yield steps, prev
+
+
+def _explicit(sys0: System, stp, data: PseudoLoadData, step, prev) -> np.ndarray:
+    """``-∂R_n/∂p`` (n, n_x) of ``step = (n, state, ...)`` at its converged state (both
+    levels; ``prev`` the state before it): the explicit part of the direct method's
+    right-hand side."""
+    n, st, _, _, coef = step
     old = (st.q, st.v, np.zeros(sys0.n_dof), np.zeros(sys0.n_con)) if prev is None else (
         prev.q, prev.v, prev.a, prev.lam)
     Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
@@ -91,57 +144,73 @@ def _tproduct(sys0: System, D, x, n_cols: int) -> np.ndarray:
     return out
 
 
-def _sweep(sys0: System, rec: _Recorder, vjps: list[ResponseVJP], data: PseudoLoadData,
-           refine: int, refine_tol: float, stats: dict) -> np.ndarray:
-    """The backward sweep (module docstring): ``dψ_r/dp_i`` (n_x, m) without the responses'
-    own data terms."""
-    n_dof, n_con, m = sys0.n_dof, sys0.n_con, len(vjps)
-    stp = rec.stepper
-    s = stp.scale
-    bar = {k: np.zeros((w, m)) for k, w in (("q", n_dof), ("v", n_dof), ("a", n_dof),
-                                             ("g", n_dof), ("lam", n_con))}
-    grad = np.zeros((data.dq0.shape[1], m))
-    F = rec.table.F
-    for j in range(len(rec.steps) - 1, -1, -1):
-        n, st, lu, last, coef = rec.steps[j]
-        for r, vj in enumerate(vjps):
+class _Sweep:
+    """The backward sweep (module docstring) over segments of steps: the adjoint state
+    ``bar`` of the step last processed and the gradient ``grad`` (n_x, m) so far, without the
+    responses' own data terms."""
+
+    def __init__(self, sys0: System, stp, vjps: list[ResponseVJP], data: PseudoLoadData,
+                 refine: int, refine_tol: float, F, stats: dict):
+        self.sys0, self.stp, self.vjps, self.data, self.F = sys0, stp, vjps, data, F
+        self.refine, self.refine_tol, self.stats = refine, refine_tol, stats
+        n_dof, n_con, m = sys0.n_dof, sys0.n_con, len(vjps)
+        self.bar = {k: np.zeros((w, m)) for k, w in (("q", n_dof), ("v", n_dof),
+                                                      ("a", n_dof), ("g", n_dof),
+                                                      ("lam", n_con))}
+        self.grad = np.zeros((data.dq0.shape[1], m))
+
+    def segment(self, steps: list, prev) -> None:
+        for j in range(len(steps) - 1, -1, -1):
+            self.step(steps[j], steps[j - 1][1] if j > 0 else prev)
+
+    def step(self, step, prev) -> None:
+        """Step ``n`` of the sweep: ``bar`` from the adjoint of ``x_n`` to that of
+        ``x_n-1`` (at the initial solve, the terms of ``dq0``, ``dv0`` into ``grad``)."""
+        sys0, stp, bar, s = self.sys0, self.stp, self.bar, self.stp.scale
+        n_dof, n_con = sys0.n_dof, sys0.n_con
+        n, st, lu, last, coef = step
+        for r, vj in enumerate(self.vjps):
             for name, g in vj.at(n).items():
                 bar[name][:, r] += np.real(g)
-        pc, upd, w_old, w_new = coef.arrays
-        h, cqa, cqg, cva, cvg, bh2, gh = pc
-        ga, gan, ggn = upd
+        h, cqa, cqg, cva, cvg, bh2, gh = coef.arrays.pc
+        ga, gan, ggn = coef.arrays.upd
         zb = np.concatenate([bar["a"] + bh2 * bar["q"] + gh * bar["v"] + ga * bar["g"],
                              s * bar["lam"]])
-        D0, Dq, Dv = _split(stp, st, w_new, F[n], n_dof)
+        D0, Dq, Dv = _split(stp, st, coef.arrays.w_new, self.F[n], n_dof)
         mu = lu.solve_transposed(zb)
-        if refine and n > 0 and last > refine_tol:
-            J = D0 + bh2 * Dq + gh * Dv
-            r = np.empty_like(zb)
-            for _ in range(refine):
-                csc_residual_transposed(J, sys0.indices, sys0.indptr, mu, zb, r)
-                mu = mu + lu.solve_transposed(r)
-            rr, bb = csc_residual_transposed(J, sys0.indices, sys0.indptr, mu, zb, r)
-            stats["refinement_residual"].append(rr / max(bb, 1e-300))
+        if self.refine and n > 0 and last > self.refine_tol:
+            mu = self._refined(mu, zb, D0 + bh2 * Dq + gh * Dv, lu)
         qhb = bar["q"] + _tproduct(sys0, Dq, mu, n_dof)
         vhb = bar["v"] + _tproduct(sys0, Dv, mu, n_dof)
-        grad += _explicit(sys0, rec, data, j).T @ mu
+        self.grad += _explicit(sys0, stp, self.data, step, prev).T @ mu
         if n == 0:
-            return grad + data.dq0.T @ qhb + data.dv0.T @ vhb
+            self.grad += self.data.dq0.T @ qhb + self.data.dv0.T @ vhb
+            return
         gb = bar["g"]
         bar["q"] = qhb
         bar["v"] = h * qhb + vhb
         bar["a"] = cqa * qhb + cva * vhb + gan * gb
         bar["g"] = cqg * qhb + cvg * vhb + ggn * gb
-        bar["lam"] = np.zeros((n_con, m))
+        bar["lam"] = np.zeros((n_con, gb.shape[1]))
         if coef.old is not None:  # the paper's weighting: the old level's share
-            prev = rec.steps[j - 1][1]
-            D0o, Dqo, Dvo = _split(stp, prev, w_old, F[n - 1], n_dof)
+            D0o, Dqo, Dvo = _split(stp, prev, coef.arrays.w_old, self.F[n - 1], n_dof)
             bar["q"] += _tproduct(sys0, Dqo, mu, n_dof)
             bar["v"] += _tproduct(sys0, Dvo, mu, n_dof)
             wz = _tproduct(sys0, D0o, mu, sys0.n)
             bar["a"] += wz[:n_dof]
             bar["lam"] += wz[n_dof:] / s
-    raise AssertionError("the recorded run has no initial solve")  # pragma: no cover
+
+    def _refined(self, mu, zb, J, lu):
+        """``refine`` sweeps of iterative refinement of ``J^T mu = zb`` (the factorization is
+        one Newton iterate behind the exact matrix ``J``)."""
+        sys0 = self.sys0
+        r = np.empty_like(zb)
+        for _ in range(self.refine):
+            csc_residual_transposed(J, sys0.indices, sys0.indptr, mu, zb, r)
+            mu = mu + lu.solve_transposed(r)
+        rr, bb = csc_residual_transposed(J, sys0.indices, sys0.indptr, mu, zb, r)
+        self.stats["refinement_residual"].append(rr / max(bb, 1e-300))
+        return mu
 
 
 def _data_terms(vjps: list[ResponseVJP], sys0: System, complex_systems: list) -> np.ndarray:
@@ -157,20 +226,27 @@ def _data_terms(vjps: list[ResponseVJP], sys0: System, complex_systems: list) ->
 
 def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_systems: list,
                 data: PseudoLoadData, *, refine: int = 1, refine_tol: float = 1e-12,
-                progress=False):
+                memory: int = 2**30, progress=False):
     """The primal run, the responses' gradients and the backward sweep.
 
-    Returns ``(result, values, gradients, timing, stats)`` with ``values[name]`` and
-    ``gradients[name]`` (n_x,) in the order of the complex systems' variables."""
-    rec = _Recorder()
+    ``memory``: bytes of states and factorizations kept for the sweep; beyond them the run
+    keeps checkpoints and the sweep recomputes segments (:class:`_Recorder`). The primal keeps
+    only the histories the responses read. Returns ``(result, values, gradients, timing,
+    stats)`` with ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the complex
+    systems' variables."""
+    rec = _Recorder(memory)
     t0 = _time.perf_counter()
-    res0 = integrate(sys0, settings, observer=rec, progress=progress)
+    kept = to_store("auto", responses, sys0, settings)
+    res0 = integrate(sys0, settings, observer=rec, progress=progress, store=kept)
     t_primal = _time.perf_counter() - t0
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
-    stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations}
-    grad = _sweep(sys0, rec, vjps, data, refine, refine_tol, stats)
-    grad += _data_terms(vjps, sys0, complex_systems)
+    stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations,
+             "segment_steps": rec.K}
+    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats)
+    for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
+        sweep.segment(steps, prev)
+    grad = sweep.grad + _data_terms(vjps, sys0, complex_systems)
     total = _time.perf_counter() - t0
     timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total}
     values = {k: vj.value for k, vj in zip(names, vjps)}

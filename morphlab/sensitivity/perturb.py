@@ -44,13 +44,26 @@ def check_same_layout(a: System, b: System, name: str) -> None:
 
 
 def uses_variable(sys_p: System, sys0: System, t_end: float) -> bool:
-    """Does the perturbed system differ from the nominal one anywhere (arrays or the
-    time-dependent data at three times)?"""
+    """Does the perturbed system differ from the nominal one anywhere: its arrays, or its time
+    profiles (compared as objects where they compare equal, else by their values at three
+    times)?"""
     if any(not np.array_equal(getattr(sys_p, k), getattr(sys0, k)) for k in DESIGN_DEPENDENT):
         return True
+    profiles = [(a, b) for a, b in zip(sys_p.load_prof + sys_p.torque_prof,
+                                       sys0.load_prof + sys0.torque_prof)]
+    profiles += [(a[1], b[1]) for a, b in zip(sys_p.con_drive, sys0.con_drive)]
+    if all(_equal(a, b) for a, b in profiles):
+        return False
     return any(not np.array_equal(x, y)
                for t in (0.0, 0.37 * t_end, t_end)
                for x, y in zip(sys_p.time_arrays(t), sys0.time_arrays(t)))
+
+
+def _equal(a, b) -> bool:
+    try:
+        return bool(a == b)
+    except Exception:  # a user profile whose comparison fails: compare values instead
+        return False
 
 
 def compile_perturbed(build: Callable, p0: dict, name: str, delta, sys0: System) -> System:

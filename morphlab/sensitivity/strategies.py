@@ -203,10 +203,14 @@ class Adjoint:
     refine, refine_tol :
         As for :class:`Direct`: refinement of the transposed solves against the exact
         converged matrix.
+    memory : int
+        Bytes of converged states and factorizations kept for the backward sweep; a longer
+        run keeps checkpoints instead and recomputes each segment of steps once more.
     """
 
     refine: int = 1
     refine_tol: float = 1e-12
+    memory: int = 2**30
 
     name = "adjoint"
     complex_results = False
@@ -217,7 +221,8 @@ class Adjoint:
                                 np.full(len(setup.names), 1j * CS_STEP), times)
         res0, values, gradients, timing, stats = adjoint_run(
             setup.sys0, setup.settings, setup.responses, setup.complex_systems, data,
-            refine=self.refine, refine_tol=self.refine_tol, progress=setup.progress)
+            refine=self.refine, refine_tol=self.refine_tol, memory=self.memory,
+            progress=setup.progress)
         return Run(res0, [], {}, timing, stats, values, gradients)
 
 
