@@ -67,7 +67,7 @@ class _Recorder:
 
     def __call__(self, info: StepInfo) -> None:
         self.stepper, self.table = info.stepper, info.table
-        last = info.newton_history[-1][1] if info.newton_history else 0.0
+        last = info.newton_history[-1, 1] if len(info.newton_history) else 0.0
         if self.K is not None:
             if info.n % self.K == 0:
                 self.checkpoints[info.n] = info.state
@@ -107,7 +107,7 @@ def _segments(rec: _Recorder, settings: Settings, q0, v0):
         for n in range(c + 1, min(c + rec.K, n_steps) + 1):
             new, lu, _, _, _, _, _, hist = fresh.step(st, float(t[n]), n, table_at(table, n - 1),
                                                     table_at(table, n))
-            steps.append((n, new, lu, hist[-1][1] if hist else 0.0, fresh.step_coef))
+            steps.append((n, new, lu, hist[-1, 1] if len(hist) else 0.0, fresh.step_coef))
             st = new
         yield steps, prev
 

@@ -81,7 +81,7 @@ class _DirectPass:
             else:
                 p = info.prev
                 self.first_old = (p.q, p.v, p.a, p.lam)
-        last = info.newton_history[-1][1] if info.newton_history else 0.0
+        last = info.newton_history[-1, 1] if len(info.newton_history) else 0.0
         self.pending.append((info.n, info.state, info.lu, last))
         self.pending_bytes += _factor_bytes(info.lu) + 8 * self.sys0.n * (self.r.shape[1] + 4)
         if self.pending_bytes >= self.block_bytes or info.n == self.n_steps:

@@ -134,9 +134,9 @@ class NewtonSolver:
 
     def solve(self, p: StepProblem, z) -> tuple:
         """Full Newton from ``z``: ``(z, factor, iterations, history)``, the factor taken at the
-        iterate before the final correction, ``history`` the ``(|R|, correction)`` of each
-        iteration."""
-        first, hist = 1, []
+        iterate before the final correction, ``history`` (iterations, 2) the ``(|R|,
+        correction)`` of each iteration."""
+        first, hist = 1, np.zeros((0, 2))
         fac = self.factorization
         if (self.compiled and fac.settled and (fac.dense or self.polish == 0)
                 and z.dtype == p.qh.dtype == p.vh.dtype == p.R_hist.dtype == self.dtype):
@@ -146,17 +146,18 @@ class NewtonSolver:
             first = it  # a sparse pivot failed at iteration ``it``: redo it from here
         L = self.system.length_scale
         err = np.inf
+        rows = list(map(tuple, hist))
         for it in range(first, self.max_iter + 1):
             z, lu, r_norm, dz_max = self._iteration(p, z, it)
             # linear in z for the initial accelerations (h = 0): one solve is exact
             err = 0.0 if p.coef.h == 0.0 else p.coef.bh2 * dz_max / L
-            hist.append((r_norm, err))
+            rows.append((r_norm, err))
             if err <= self.tol:
                 for _ in range(self.polish):
                     R, _ = p.residual(z, self.n_dof)
                     lu = self.factor(p, z)
                     z = z + lu.solve(-R)
-                return z, lu, it, hist
+                return z, lu, it, np.array(rows)
         raise not_converged(p, z, self, err)
 
     def _iteration(self, p: StepProblem, z, it: int):
@@ -190,11 +191,11 @@ class NewtonSolver:
             self.data, *arrays, PIVOT_THRESHOLD, hist)
         if status == CONVERGED:
             self.n_factorizations += it + self.polish
-            return z, fac.factor_of(arrays), it, [tuple(h) for h in hist[:it].tolist()]
+            return z, fac.factor_of(arrays), it, hist[:it].copy()
         # no complete factorization at `it` unless the failure came after it
         self.n_factorizations += it if status in (NONFINITE_CORRECTION, NOT_CONVERGED) else it - 1
         if status == PIVOT_REFUSED:
-            return z, None, it, [tuple(h) for h in hist[:it - 1].tolist()]
+            return z, None, it, hist[:it - 1].copy()
         r_norm = float(hist[it - 1, 0])
         if status == NONFINITE_RESIDUAL:
             raise non_finite_residual(p, R, it)
@@ -243,7 +244,7 @@ class NewtonSolver:
             else:
                 done = err * theta / max(1.0 - theta, 1e-12) <= self.tol
             if done:
-                return z, self.kept, it, hist
+                return z, self.kept, it, np.array(hist).reshape(-1, 2)
             if theta is not None and theta > 0.3:
                 self.kept = None
             err_prev = err

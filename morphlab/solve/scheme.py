@@ -143,27 +143,31 @@ def newmark_predict(coef: StepCoefficients, q, v, a, g):
     """Predictors ``(q_hat, v_hat)`` of arrays of any one shape (states (n,), sensitivity
     columns (n, n_x)): :func:`morphlab.kernels.newmark.predict`."""
     shape = np.shape(q)
-    dt = np.result_type(q, v, a, g)
-    qh, vh = np.empty(shape, dtype=dt), np.empty(shape, dtype=dt)
-    newmark.predict(coef.arrays.pc, *(_flat(x, dt) for x in (q, v, a, g)), qh.reshape(-1),
-                    vh.reshape(-1))
-    return qh, vh
+    q, v, a, g = _flat(q, v, a, g)
+    qh, vh = np.empty_like(q), np.empty_like(q)
+    newmark.predict(coef.arrays.pc, q, v, a, g, qh, vh)
+    return qh.reshape(shape), vh.reshape(shape)
 
 
 def newmark_update(coef: StepCoefficients, qh, vh, a1, a, g):
     """``(q_{n+1}, v_{n+1}, g_{n+1})`` from the predictors and the new acceleration ``a1``
     (:func:`morphlab.kernels.newmark.update`)."""
     shape = np.shape(qh)
-    dt = np.result_type(qh, vh, a1, a, g)
-    q1, v1, g1 = (np.empty(shape, dtype=dt) for _ in range(3))
+    qh, vh, a1, a, g = _flat(qh, vh, a1, a, g)
+    q1, v1, g1 = np.empty_like(qh), np.empty_like(qh), np.empty_like(qh)
     arr = coef.arrays
-    newmark.update(arr.pc, arr.upd, *(_flat(x, dt) for x in (qh, vh, a1, a, g)),
-                   q1.reshape(-1), v1.reshape(-1), g1.reshape(-1))
-    return q1, v1, g1
+    newmark.update(arr.pc, arr.upd, qh, vh, a1, a, g, q1, v1, g1)
+    return q1.reshape(shape), v1.reshape(shape), g1.reshape(shape)
 
 
-def _flat(x, dt):
-    return np.ascontiguousarray(x, dtype=dt).reshape(-1)
+def _flat(*xs):
+    """The arrays as contiguous 1-D arrays of one dtype (no copies when they already are:
+    the states of a run)."""
+    dt = xs[0].dtype
+    if all(x.ndim == 1 and x.dtype == dt and x.flags.c_contiguous for x in xs):
+        return xs
+    dt = np.result_type(*xs)
+    return tuple(np.ascontiguousarray(x, dtype=dt).reshape(-1) for x in xs)
 
 
 INITIAL = StepCoefficients(0.0, (1.0, 1.0, 1.0, 1.0, 1.0), None, 0.0, 0.0)

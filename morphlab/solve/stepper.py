@@ -19,10 +19,11 @@ import numpy as np
 
 from ..compile.system import System, TimeArrays, kernel_arrays
 from ..errors import ConvergenceError, NonFiniteError
+from ..kernels import newmark
 from ..kernels.assemble import add_residual
 from .linalg import Factor, csc_matrix
 from .newton import NewtonSolver, StepProblem
-from .scheme import INITIAL, GeneralizedAlpha, StepCoefficients, newmark_predict, newmark_update
+from .scheme import INITIAL, GeneralizedAlpha, StepCoefficients
 from .scheme import step_coefficients as _step_coefficients
 from .settings import Settings, State
 
@@ -158,14 +159,17 @@ class Stepper:
         ends, when precomputed; ``coef``: coefficients of a shorter sub-step). Returns
         ``(state, factor, n_iter, z, qh, vh, R_hist, history)``."""
         coef = self.step_coef if coef is None else coef
-        qh, vh = newmark_predict(coef, st.q, st.v, st.a, st.g)
+        pc, upd = coef.arrays.pc, coef.arrays.upd
+        qh, vh = np.empty_like(st.q), np.empty_like(st.q)
+        newmark.predict(pc, st.q, st.v, st.a, st.g, qh, vh)
         R_hist = self.history(st, coef, ta=ta_old)
         ta_new = ta_new if ta_new is not None else self.time_arrays(t1)
         p = self.problem(qh, vh, coef, R_hist, ta_new, t1, step)
         z0 = np.concatenate([st.a, st.lam / self.scale])
         z, lu, it, hist = self.solve(p, z0)
         a = z[: self.n_dof]
-        q1, v1, g1 = newmark_update(coef, qh, vh, a, st.a, st.g)
+        q1, v1, g1 = np.empty_like(qh), np.empty_like(qh), np.empty_like(qh)
+        newmark.update(pc, upd, qh, vh, a, st.a, st.g, q1, v1, g1)
         new = State(t1, q1, v1, a, z[self.n_dof:] * self.scale, g1)
         return new, lu, it, z, qh, vh, R_hist, hist
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..compile import System
 from ..errors import ModelError, ResourceError
-from ..kernels.joints import constraint_values
+from ..kernels.joints import constraint_values, constraint_violation_history
 from .settings import State
 
 #: The histories a run can keep, in the order of a state.
@@ -74,9 +74,11 @@ class HistoryStore:
         self.vviol = np.zeros(n_t)
         self.log = np.zeros((max(4 * n_t, 16), 2))  # Newton rows, grown by doubling
         self.log_offsets = np.zeros(n_t + 1, dtype=np.int64)
+        self._rows = 0  # Newton rows so far
         self._phi = np.zeros(system.n_con, dtype=system.dtype)
         self._phid = np.zeros(system.n_con, dtype=system.dtype)
         self._u0 = np.ascontiguousarray(system.con_u0)
+        self._batch = "q" in store and "v" in store  # violations from the kept histories
         self.n_done = -1
 
     def _array(self, name, shape, memmap):
@@ -94,14 +96,14 @@ class HistoryStore:
         for name, arr in self.arrays.items():
             arr[n] = getattr(st, name)
         self.iterations[n] = iterations
-        k = self.log_offsets[n]
-        rows = len(history)
+        k, rows = self._rows, len(history)
         if k + rows > self.log.shape[0]:
             self.log = np.concatenate([self.log, np.zeros_like(self.log)])
         if rows:
             self.log[k:k + rows] = history
-        self.log_offsets[n + 1] = k + rows
-        if self.system.n_con:
+        self._rows = k + rows
+        self.log_offsets[n + 1] = self._rows
+        if self.system.n_con and not self._batch:  # else at the end, from the histories
             s = self.system
             constraint_values(st.q, st.v, ta.c, ta.cd, s.con_kind, s.con_dofs, self._u0,
                               self._phi, self._phid)
@@ -109,10 +111,16 @@ class HistoryStore:
             self.vviol[n] = np.max(np.abs(np.real(self._phid)))
         self.n_done = n
 
-    def result_fields(self) -> dict:
+    def result_fields(self, table) -> dict:
         """The Result's history fields up to the last recorded step (copies of in-memory
-        arrays, views of memory maps)."""
+        arrays, views of memory maps); ``table``: the run's time table."""
         sl = slice(0, self.n_done + 1)
+        if self._batch and self.system.n_con and self.n_done >= 0:
+            s = self.system
+            constraint_violation_history(self.arrays["q"][sl], self.arrays["v"][sl],
+                                         np.ascontiguousarray(table.C[sl]),
+                                         np.ascontiguousarray(table.CD[sl]), s.con_kind,
+                                         s.con_dofs, self._u0, self.viol[sl], self.vviol[sl])
         out = {k: (self.arrays[k][sl] if isinstance(self.arrays[k], np.memmap)
                    else self.arrays[k][sl].copy()) if k in self.arrays else None
                for k in HISTORIES}

@@ -42,7 +42,7 @@ class StepInfo:
     vh: np.ndarray
     coef: StepCoefficients
     stepper: Stepper
-    newton_history: list = field(default_factory=list)
+    newton_history: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     table: TimeTable | None = None
 
 
@@ -83,7 +83,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
         return Result(system=system, settings=settings, status=status, message=message,
                       n_factorizations=stepper.n_factorizations,
                       wall_time=_time.perf_counter() - t_wall, scale=stepper.scale,
-                      step_reductions=list(reductions), **hist.result_fields())
+                      step_reductions=list(reductions), **hist.result_fields(table))
 
     dt = system.dtype
     q_init = (system.q0 if q0 is None else q0).astype(dt)
@@ -96,16 +96,17 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
             if observer is not None:
                 observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper,
                                   table=table))
+            ta_old = table_at(table, 0)
             for n in range(1, n_steps + 1):
                 interrupts.check()
+                ta = table_at(table, n)
                 new, lu, it, z, qh, vh, R_hist, newton = stepper.advance(
-                    st, float(t[n]), n, table_at(table, n - 1), table_at(table, n),
-                    max_halvings, reductions)
-                hist.record(n, new, it, newton, table_at(table, n))
+                    st, float(t[n]), n, ta_old, ta, max_halvings, reductions)
+                hist.record(n, new, it, newton, ta)
                 if observer is not None:
                     observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper,
                                       newton, table=table))
-                st = new
+                st, ta_old = new, ta
                 if report is not None:
                     report(n, n_steps, float(t[n]))
         except SolverError as err:
