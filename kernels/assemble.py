@@ -52,7 +52,7 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     load_jacobian(S, q, cf, bh2, F, data)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _step_state(z, qh, vh, bh2, gh, scale, n_dof):
     """``(q, v, a, lam)`` of a step at the unknowns ``z = (a, lam/scale)``:
     ``q = q_hat + bh2 a``, ``v = v_hat + gh a``."""
@@ -80,8 +80,11 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
     # for an array assignment, 2 s of every cold start (measured)
     for k in range(R.shape[0]):
         R[k] = R_hist[k]
-    add_residual(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], scale, b0, b1, c, cd, cdd, F, T,
-                 n_dof, R)
+    parts = all_parts(S)
+    body_residual(S, q, v, a, w[0], w[2], parts, R)
+    constraint_residual(S, q, v, a, lam, w[1], w[3], w[4], scale, b0, b1, c, cd, cdd, parts.rows,
+                        n_dof, R)
+    load_residual(S, q, w[2], F, T, parts.loads, parts.torques, R)
     ssq = 0.0
     for k in range(R.shape[0]):
         ssq += R[k].real * R[k].real + R[k].imag * R[k].imag
@@ -92,7 +95,10 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
 def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     """The exact Newton matrix at the step unknowns ``z`` into ``data`` (weights ``w``)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, qh.shape[0])
-    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], bh2, gh, scale, b0, b1, F, data)
+    data[:] = 0.0
+    body_jacobian(S, q, v, a, w[0], w[2], bh2, gh, data)
+    constraint_jacobian(S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1, data)
+    load_jacobian(S, q, w[2], bh2, F, data)
 
 
 @njit(cache=True)

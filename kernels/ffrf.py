@@ -117,7 +117,7 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af, Mq, Sq,
                flex_on):
     """Reductions over a body's flex coordinates shared by residual and Jacobian:

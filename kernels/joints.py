@@ -30,14 +30,14 @@ from numba import njit
 ROW_X, ROW_Y, ROW_ANGLE = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dofs(table, i, side):
     """The six DOFs of side ``side`` of row ``i`` as a tuple (``-1`` where absent)."""
     return (table[i, side, 0], table[i, side, 1], table[i, side, 2], table[i, side, 3],
             table[i, side, 4], table[i, side, 5])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _side(kind, dofs, ux0, uy0, q, v, a):
     """Value, gradient and second-order terms of one side of a row (sign not applied).
 
@@ -97,7 +97,7 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     return g, vHv, grad, Hv, Ha, dvHv
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _side_hessian(kind, dofs, ux0, uy0, q):
     """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side
     (symmetric; all zero for angle rows)."""
@@ -116,7 +116,7 @@ def _side_hessian(kind, dofs, ux0, uy0, q):
     return -(s * ux + c * uy), c, -s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
     """Add ``coef H`` of one side to ``data`` at the positions ``hmap[i, side, j, k]``."""
     h22, h23, h24 = _side_hessian(kind, dofs, ux0, uy0, q)
@@ -232,23 +232,6 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
                     Jv += sg * grad[j] * v[dofs[j]]
         phi[i] = g - c[i]
         phid[i] = Jv - cd[i]
-
-
-@njit(cache=True)
-def constraint_jacobian_matrix(q, con_kind, con_dofs, con_u0, n_dof, Jc):
-    """Dense constraint Jacobian ``Jc`` (n_con, n_dof), out; for checks and rank tests."""
-    Jc[:, :] = 0.0
-    for i in range(con_kind.shape[0]):
-        for side in range(2):
-            sg = 1.0 if side == 0 else -1.0
-            dofs = _dofs(con_dofs, i, side)
-            if dofs[0] < 0 and dofs[2] < 0:
-                continue
-            _, _, grad, _, _, _ = _side(con_kind[i], dofs, con_u0[i, side, 0],
-                                        con_u0[i, side, 1], q, q, q)
-            for j in range(6):
-                if dofs[j] >= 0:
-                    Jc[i, dofs[j]] += sg * grad[j]
 
 
 @njit(cache=True)

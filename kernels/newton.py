@@ -99,7 +99,8 @@ def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof
     (One function, not a loop around an iteration kernel: each compiled caller re-optimizes the
     residual and matrix kernels it links, ~2 s of every cold start per level, measured.)"""
     n = R.shape[0]
-    dz = np.empty((n, 1), dtype=R.dtype)
+    dz1 = np.empty(n, dtype=R.dtype)  # contiguous: apply_correction as called from Python
+    dz = dz1.reshape((n, 1))
     work = np.empty_like(dz)
     done = 0  # the iteration that met the tolerance
     it = 0
@@ -119,7 +120,7 @@ def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof
         for r in range(n):
             dz[r, 0] = -R[r]
         solve_factored(dz, work, LU, piv, Lx, Ux, Ud, pattern)
-        z1, dz_max, finite = apply_correction(z, dz[:, 0], n_dof)
+        z1, dz_max, finite = apply_correction(z, dz1, n_dof)
         if not finite:
             return z1, k, NONFINITE_CORRECTION, -1
         z = z1

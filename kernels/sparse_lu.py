@@ -70,9 +70,15 @@ def symbolic(n, indices, indptr, perm_r):
                         next_child[top] = Lp[i] if i < j else 0
                 else:
                     top -= 1
-        rows = np.sort(found[:nf])
+        for t in range(1, nf):  # insertion sort: a column's rows are few
+            x = found[t]
+            u = t - 1
+            while u >= 0 and found[u] > x:
+                found[u + 1] = found[u]
+                u -= 1
+            found[u + 1] = x
         for t in range(nf):
-            i = rows[t]
+            i = found[t]
             if i < j:
                 if nu == Ui.size:
                     Ui = np.concatenate((Ui, np.empty(Ui.size, np.int64)))

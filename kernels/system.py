@@ -122,7 +122,7 @@ class Parts(NamedTuple):
     torques: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def all_parts(S):
     """:class:`Parts` covering the whole system."""
     return Parts(np.arange(S.body_ref.shape[0]), np.arange(S.elem_fdof.shape[0]),

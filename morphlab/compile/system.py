@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ModelError
+from ..kernels import assemble as kassemble
 from ..kernels import joints as kjoints
 from ..kernels.system import DESIGN_FIELDS, SystemArrays
 from ..model.model import Model
@@ -138,12 +140,17 @@ class System:
         return phi, phid
 
     def constraint_matrix(self, q):
-        """Dense constraint Jacobian (n_con, n_dof) at ``q``."""
+        """Dense constraint Jacobian (n_con, n_dof) at ``q``: the constraint rows of the step
+        matrix with only their ``J a`` term weighted (the kernel the solver compiles anyway)."""
         dt = np.result_type(self.dtype, q.dtype)
-        Jc = np.zeros((self.n_con, self.n_dof), dtype=dt)
-        kjoints.constraint_jacobian_matrix(q.astype(dt), self.con_kind, self.con_dofs,
-                                           self.con_u0.astype(dt), self.n_dof, Jc)
-        return Jc
+        n = self.n
+        data = np.zeros(self.nnz, dtype=dt)
+        zero = np.zeros(self.n_dof, dtype=dt)
+        kassemble.step_matrix(kernel_arrays(self, dt), np.zeros(n, dtype=dt), q.astype(dt), zero,
+                              0.0, 0.0, 1.0, np.array([0.0, 1.0, 0.0, 1.0, 0.0]), 0.0, 0.0,
+                              np.zeros((self.load_dofs.shape[0], 2), dtype=dt), data)
+        A = sp.csc_matrix((data, self.indices, self.indptr), shape=(n, n))
+        return A[self.n_dof:, :self.n_dof].toarray()
 
 
 def kernel_arrays(system: System, dtype=None) -> SystemArrays:

@@ -21,6 +21,7 @@ from ..compile.system import TimeTable, table_at, time_table
 from ..errors import Interrupted, ModelError, SolverError
 from ..model.model import Model
 from ..results.result import Result
+from .cache import announce_compilation
 from .linalg import Factor
 from .scheme import StepCoefficients
 from .settings import Settings, State
@@ -70,6 +71,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
         raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
     settings.validate()
+    announce_compilation()
     n_steps = settings.n_steps
     check_memory(system, n_steps + 1, store, memmap)
     t = settings.t_start + settings.h * np.arange(n_steps + 1)

@@ -1,0 +1,48 @@
+"""Where the compiled kernels are cached, and the one-line notice of their first compilation.
+
+Numba compiles the kernels on their first call in an environment and caches the machine code
+on disk: in ``$NUMBA_CACHE_DIR`` when that is set, else next to the kernels' sources (their
+``__pycache__``) when writable, else in the user's cache folder. Later processes load it in
+about a second.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from ..kernels.newton import newton_loop
+
+#: Wall time of the first compilation of a primal run's kernels on a 2-core machine [s]
+#: (BENCHMARKS.md, "Start-up").
+FIRST_COMPILATION_S = 25
+
+_announced = False
+
+
+def kernel_cache_dir() -> str | None:
+    """The folder Numba caches the kernels in (None if Numba does not say)."""
+    try:
+        return newton_loop._cache._cache_path
+    except AttributeError:  # pragma: no cover - another Numba layout
+        return None
+
+
+def kernels_cached() -> bool:
+    """Has the Newton loop, the last kernel a run compiles, been cached already?"""
+    try:
+        path = newton_loop._cache._cache_file._index_path
+    except AttributeError:  # pragma: no cover - another Numba layout: assume cached
+        return True
+    return bool(newton_loop.signatures) or os.path.exists(path)
+
+
+def announce_compilation() -> None:
+    """Print, once per process, that the kernels are being compiled (a cold cache)."""
+    global _announced
+    if _announced or kernels_cached():
+        return
+    _announced = True
+    print(f"morphlab: compiling the numerical kernels once (about {FIRST_COMPILATION_S} s on "
+          f"2 cores); they are cached in {kernel_cache_dir()} for later runs", file=sys.stderr,
+          flush=True)
