@@ -4,7 +4,8 @@ Every contribution to the saddle-point matrix (body border rows/columns, element
 constraint rows and columns, the Hessian terms of joints and point loads) gets its (row,
 column) pairs once per model; ``np.unique`` turns them into a CSC pattern and, for each
 contribution, the position of its value in ``data``. A Newton iteration then only refills
-``data`` (kernels.assemble.fill_matrix).
+``data`` (kernels.assemble). A new kind of contribution adds its coordinates with
+:meth:`Pattern.add` and reads its positions back from :meth:`Pattern.finish`.
 """
 
 from __future__ import annotations
@@ -17,84 +18,80 @@ from ..kernels.joints import ROW_ANGLE
 _HESS_ENTRIES = ((2, 2), (2, 3), (3, 2), (2, 4), (4, 2))
 
 
-def newton_pattern(s) -> dict:
-    """Fixed CSC pattern of the Newton matrix and the scatter map of every contribution."""
-    n_dof, n_con = s["n_dof"], s["n_con"]
-    n = n_dof + n_con
-    rows: list[np.ndarray] = []
-    cols: list[np.ndarray] = []
+class Pattern:
+    """Coordinates of named contributions (``-1``: absent), then the CSC pattern and the
+    position in ``data`` of every entry of each contribution, in the contribution's shape."""
 
-    def add(r, c):
-        r = np.asarray(r, dtype=np.int64).ravel()
-        c = np.asarray(c, dtype=np.int64).ravel()
-        rows.append(r)
-        cols.append(c)
-        return sum(x.size for x in rows) - r.size
+    def __init__(self, n: int):
+        self.n = n
+        self.parts: list[tuple[str, np.ndarray, np.ndarray, tuple]] = []
 
-    # body borders
+    def add(self, name: str, rows, cols) -> None:
+        """Contribution ``name``: (row, column) of each of its entries, arrays of one shape."""
+        rows, cols = np.broadcast_arrays(np.asarray(rows, np.int64), np.asarray(cols, np.int64))
+        self.parts.append((name, rows.ravel(), cols.ravel(), rows.shape))
+
+    def finish(self) -> dict:
+        """``indptr``, ``indices`` and the map of every contribution (its shape, -1 where an
+        entry is absent)."""
+        R = np.concatenate([p[1] for p in self.parts])
+        C = np.concatenate([p[2] for p in self.parts])
+        valid = (R >= 0) & (C >= 0)
+        ukey, inv = np.unique(C[valid] * self.n + R[valid], return_inverse=True)
+        full_map = -np.ones(R.size, dtype=np.int64)
+        full_map[valid] = inv
+        indptr = np.zeros(self.n + 1, dtype=np.int64)
+        np.add.at(indptr, ukey // self.n + 1, 1)
+        out = {"indptr": np.cumsum(indptr), "indices": (ukey % self.n).astype(np.int64)}
+        start = 0
+        for name, rows, _, shape in self.parts:
+            seg = full_map[start:start + rows.size].reshape(shape)
+            out[name] = np.ascontiguousarray(seg if name not in out else
+                                             np.concatenate([out[name], seg]))
+            start += rows.size
+        return out
+
+
+def _borders(s, pat: Pattern) -> np.ndarray:
+    """Each body's 3 x 3 reference block, reference-row/flex-column and flex-row/reference-
+    column entries (row-major in each part); returns the offsets of each body's entries."""
     body_ref, flex_off, flex_dof = s["body_ref"], s["flex_off"], s["flex_dof"]
-    border_off = [0]
-    starts = []
+    offsets = [0]
     for b in range(body_ref.shape[0]):
         ref = body_ref[b]
         fd = flex_dof[flex_off[b]:flex_off[b + 1]]
-        r3, c3 = np.meshgrid(ref, ref, indexing="ij")
-        starts.append(add(r3, c3))
-        add(np.repeat(ref, fd.size), np.tile(fd, 3))
-        add(np.repeat(fd, 3), np.tile(ref, fd.size))
-        border_off.append(border_off[-1] + 9 + 6 * fd.size)
-    n_border = border_off[-1]
-    border_start = starts[0] if starts else 0
-    # elements
-    efd = s["elem_fdof"]
+        rows = np.concatenate([np.repeat(ref, 3), np.repeat(ref, fd.size), np.repeat(fd, 3)])
+        cols = np.concatenate([np.tile(ref, 3), np.tile(fd, 3), np.tile(ref, fd.size)])
+        pat.add("border_map", rows, cols)
+        offsets.append(offsets[-1] + rows.size)
+    if body_ref.shape[0] == 0:
+        pat.add("border_map", np.zeros(0), np.zeros(0))
+    return np.array(offsets, dtype=np.int64)
+
+
+def _hessian(dofs, which) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column DOFs of the Hessian entries :data:`_HESS_ENTRIES` of points whose six
+    DOFs are ``dofs[..., 6]``, where ``which`` (broadcastable to ``dofs[..., 0]``) is True."""
+    shape = dofs.shape[:-1] + (6, 6)
+    Hr, Hc = -np.ones(shape, dtype=np.int64), -np.ones(shape, dtype=np.int64)
+    for (j, k) in _HESS_ENTRIES:
+        Hr[..., j, k] = np.where(which, dofs[..., j], -1)
+        Hc[..., j, k] = np.where(which, dofs[..., k], -1)
+    return Hr, Hc
+
+
+def newton_pattern(s) -> dict:
+    """Fixed CSC pattern of the Newton matrix and the scatter map of every contribution."""
+    n_dof, n_con = s["n_dof"], s["n_con"]
+    pat = Pattern(n_dof + n_con)
+    border_off = _borders(s, pat)
+    efd, flex_dof = s["elem_fdof"], s["flex_dof"]
     gd = np.where(efd >= 0, flex_dof[np.maximum(efd, 0)] if flex_dof.size else -1, -1)
-    er = np.repeat(gd[:, :, None], 6, axis=2)
-    ec = np.repeat(gd[:, None, :], 6, axis=1)
-    elem_start = add(er, ec)
-    # constraints
+    pat.add("elem_map", gd[:, :, None], gd[:, None, :])
     cd = s["con_dofs"]
-    crow = np.broadcast_to((n_dof + np.arange(n_con))[:, None, None], cd.shape)
-    row_start = add(crow, cd)
-    col_start = add(cd, crow)
-    Hr = -np.ones((n_con, 2, 6, 6), dtype=np.int64)
-    Hc = -np.ones((n_con, 2, 6, 6), dtype=np.int64)
-    for (j, k) in _HESS_ENTRIES:
-        point_rows = (s["con_kind"] != ROW_ANGLE)[:, None]
-        Hr[:, :, j, k] = np.where(point_rows, cd[:, :, j], -1)
-        Hc[:, :, j, k] = np.where(point_rows, cd[:, :, k], -1)
-    H_start = add(Hr, Hc)
-    ld = s["load_dofs"]
-    Lr = -np.ones((ld.shape[0], 6, 6), dtype=np.int64)
-    Lc = -np.ones((ld.shape[0], 6, 6), dtype=np.int64)
-    for (j, k) in _HESS_ENTRIES:
-        Lr[:, j, k] = ld[:, j]
-        Lc[:, j, k] = ld[:, k]
-    load_start = add(Lr, Lc)
-
-    R = np.concatenate(rows)
-    C = np.concatenate(cols)
-    valid = (R >= 0) & (C >= 0)
-    key = C[valid] * n + R[valid]
-    ukey, inv = np.unique(key, return_inverse=True)
-    full_map = -np.ones(R.size, dtype=np.int64)
-    full_map[valid] = inv
-    indices = (ukey % n).astype(np.int64)
-    colidx = ukey // n
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(indptr, colidx + 1, 1)
-    indptr = np.cumsum(indptr)
-
-    def seg(start, shape):
-        size = int(np.prod(shape))
-        return np.ascontiguousarray(full_map[start:start + size].reshape(shape))
-
-    return dict(
-        indptr=indptr, indices=indices,
-        border_off=np.array(border_off, dtype=np.int64),
-        border_map=seg(border_start, (n_border,)),
-        elem_map=seg(elem_start, efd.shape + (6,)),
-        con_map_row=seg(row_start, cd.shape),
-        con_map_col=seg(col_start, cd.shape),
-        con_map_H=seg(H_start, (n_con, 2, 6, 6)),
-        load_map=seg(load_start, (ld.shape[0], 6, 6)),
-    )
+    crow = (n_dof + np.arange(n_con))[:, None, None]
+    pat.add("con_map_row", crow, cd)
+    pat.add("con_map_col", cd, crow)
+    pat.add("con_map_H", *_hessian(cd, (s["con_kind"] != ROW_ANGLE)[:, None]))
+    pat.add("load_map", *_hessian(s["load_dofs"], True))
+    return dict(pat.finish(), border_off=border_off)
