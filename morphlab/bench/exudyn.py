@@ -284,7 +284,8 @@ def scaling_ratio(grad: dict, p: dict = P0) -> float:
 # ------------------------------------------------------------------------------- the case
 def compare(repeats: int, n_elements: int, t_end: float = T_END,
             n_steps: int = N_STEPS) -> dict:
-    """Agreement, primal timings and sensitivities for one mesh."""
+    """Agreement, primal timings and sensitivities for one mesh. (Long: one comparison step
+    after the other, each a few lines, read top to bottom.)"""
     dt = t_end / n_steps
     settings = dict(t_end=t_end, dt=dt, rho_inf=RHO_INF)
     out = {"n_elements": n_elements, "steps": n_steps, "t_end": t_end, "dt": dt}

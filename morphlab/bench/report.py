@@ -8,7 +8,8 @@ import json
 
 
 def table(results: dict) -> str:
-    """The results as Markdown tables."""
+    """The results as Markdown tables. (Long: one table per benchmark case, written row by
+    row.)"""
     lines = []
     m = results["cases"].get("morphing")
     if m:

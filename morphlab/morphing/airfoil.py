@@ -543,12 +543,18 @@ def drooped_curve(
         _, y_le, _ = leading_edge_point(new)
         return np.array([y_le - (y_le0 - droop), new[-1, 1] - pts[-1, 1]])
 
-    coef = np.array([droop / depth, 0.0])  # rigid rotation about the spar, to first order
+    # start: a rigid rotation about the spar, to first order
+    coef = _newton_2(residual, np.array([droop / depth, 0.0]), tol, max_iter)
+    return build(coef)
+
+
+def _newton_2(residual, coef: FloatArray, tol: float, max_iter: int) -> FloatArray:
+    """Newton's method on two equations with a central-difference Jacobian (step 1e-7)."""
     res = residual(coef)
     h = 1e-7
     for _ in range(max_iter):
         if np.max(np.abs(res)) <= tol:
-            return build(coef)
+            return coef
         jac = np.empty((2, 2))
         for j in range(2):
             step = np.zeros(2)
@@ -557,7 +563,7 @@ def drooped_curve(
         coef = coef - np.linalg.solve(jac, res)
         res = residual(coef)
     if np.max(np.abs(res)) <= tol:
-        return build(coef)
+        return coef
     raise RuntimeError(f"droop construction did not converge (residual {res} mm)")
 
 
