@@ -136,3 +136,14 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
         for v in p0:
             diff = abs(small.gradients[r][v] - full.gradients[r][v])
             assert diff <= (0.0 if name == "pendulum" else 1e-9 * scale), (r, v, diff)
+
+
+def test_auto_chooses_by_variables_per_response_and_vjp():
+    """More variables than responses and every response with a vjp: the adjoint; a response
+    without one, or more responses than variables: direct."""
+    build, p0, resp = adjoint_responses("pendulum")
+    assert ml.sensitivities(build, p0, resp, method="auto", **RUN).method == "adjoint"
+    plain = dict(resp, plain=lambda r: r.q[-1, 0])
+    assert ml.sensitivities(build, p0, plain, method="auto", **RUN).method == "direct"
+    few = ml.sensitivities(build, p0, resp, method="auto", variables=["t"], **RUN)
+    assert few.method == "direct"

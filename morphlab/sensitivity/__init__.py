@@ -2,7 +2,7 @@
 its factorizations and its residual kernels."""
 
 from .api import SensitivityResult, sensitivities
-from .strategies import Adjoint, ComplexStep, Direct, FiniteDifference
+from .strategies import Adjoint, Auto, ComplexStep, Direct, FiniteDifference
 
-__all__ = ["Adjoint", "ComplexStep", "Direct", "FiniteDifference", "SensitivityResult",
+__all__ = ["Adjoint", "Auto", "ComplexStep", "Direct", "FiniteDifference", "SensitivityResult",
            "sensitivities"]

@@ -55,7 +55,7 @@ from ..results.result import Result
 from ..solve.settings import Settings
 from .histories import HISTORIES
 from .perturb import CS_STEP, complex_systems, relative_steps
-from .strategies import Setup, resolve
+from .strategies import Auto, Setup, resolve
 
 
 @dataclass
@@ -176,9 +176,10 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     responses : dict[str, callable]
         ``f(result) -> scalar``, complex-safe (see :mod:`morphlab.responses`).
     method : str or strategy
-        ``"direct"``, ``"direct-fd"``, ``"complex-step"``, ``"forward-difference"``,
-        ``"central-difference"`` (module docstring), or a strategy object of
-        :mod:`morphlab.sensitivity.strategies` (``Direct(...)``, ``ComplexStep()``,
+        ``"direct"``, ``"direct-fd"``, ``"adjoint"``, ``"auto"`` (direct or adjoint, whichever
+        is cheaper), ``"complex-step"``, ``"forward-difference"``, ``"central-difference"``
+        (module docstring), or a strategy object of :mod:`morphlab.sensitivity.strategies`
+        (``Direct(...)``, ``Adjoint(...)``, ``Auto(...)``, ``ComplexStep()``,
         ``FiniteDifference(kind, step)``) with its own options.
     variables : list[str], optional
         Subset of ``p0`` to differentiate (default: all).
@@ -221,6 +222,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     setup = Setup(sys0, settings, build, p0, names, csys, dict(responses), store, progress,
                   steps)
     t_setup = _time.perf_counter() - t_start
+    if isinstance(strategy, Auto):
+        strategy = strategy.choose(setup)
     run = strategy.run(setup)
     run.timing["setup"] = t_setup
 

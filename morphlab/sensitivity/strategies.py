@@ -227,21 +227,45 @@ class Adjoint:
 
 
 
+@dataclass(frozen=True)
+class Auto:
+    """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
+    response has a ``vjp`` and there are more than ``crossover`` design variables per response
+    (its cost grows with the responses, the direct method's with the variables; the crossover
+    is measured in BENCHMARKS.md, "Cost against the number of variables")."""
+
+    crossover: float = 1.0
+
+    complex_results = False
+
+    def choose(self, setup: Setup):
+        """The strategy for this set-up."""
+        has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
+        if has_vjp and len(setup.names) > self.crossover * len(setup.responses):
+            return Adjoint()
+        return Direct()
+
+    def run(self, setup: Setup) -> Run:
+        raise SensitivityError("Auto chooses a strategy first (Auto.choose)")  # pragma: no cover
+
+
 def _check_step(step) -> None:
     if not (isinstance(step, float) and 0 < step < 1):
         raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
 
 
 #: The method strings of :func:`morphlab.sensitivities` and the strategies they stand for.
-ALIASES = ("direct", "direct-fd", "adjoint", "complex-step", "forward-difference",
+ALIASES = ("auto", "direct", "direct-fd", "adjoint", "complex-step", "forward-difference",
            "central-difference")
 
 
 def resolve(method, step: float = 1e-6, refine: int = 1):
     """A strategy object for ``method`` (a strategy, or one of :data:`ALIASES`; ``step`` and
     ``refine`` configure the aliases)."""
-    if isinstance(method, (Direct, Adjoint, ComplexStep, FiniteDifference)):
+    if isinstance(method, (Direct, Adjoint, ComplexStep, FiniteDifference, Auto)):
         return method
+    if method == "auto":
+        return Auto()
     if method == "direct":
         return Direct(refine=refine)
     if method == "adjoint":
@@ -256,5 +280,5 @@ def resolve(method, step: float = 1e-6, refine: int = 1):
                            "a strategy (Direct(), ComplexStep(), FiniteDifference())")
 
 
-__all__ = ["ALIASES", "Adjoint", "ComplexStep", "Direct", "FiniteDifference", "HISTORIES", "Run",
-           "Setup", "resolve"]
+__all__ = ["ALIASES", "Adjoint", "Auto", "ComplexStep", "Direct", "FiniteDifference",
+           "HISTORIES", "Run", "Setup", "resolve"]
