@@ -27,11 +27,13 @@ The state matrices ``R_q``, ``R_v`` come from the same kernels as the direct met
 from __future__ import annotations
 
 import time as _time
+from itertools import groupby
 
 import numpy as np
 
 from ..compile import System
 from ..compile.system import table_at
+from ..kernels.adjoint import adjoint_block
 from ..kernels.direct import (
     csc_residual_transposed,
     csc_transposed_product,
@@ -39,6 +41,7 @@ from ..kernels.direct import (
     split_matrices,
 )
 from ..results.gradients import ResponseVJP, response_vjp, system_data
+from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
 from ..solve.timeloop import StepInfo, integrate
 from .histories import to_store
@@ -160,8 +163,70 @@ class _Sweep:
         self.grad = np.zeros((data.dq0.shape[1], m))
 
     def segment(self, steps: list, prev) -> None:
-        for j in range(len(steps) - 1, -1, -1):
-            self.step(steps[j], steps[j - 1][1] if j > 0 else prev)
+        """Sweep one segment of steps (in time order; ``prev`` the state before them): runs
+        of steps whose factors a compiled kernel solves and that share coefficients in one
+        call each (:func:`~morphlab.kernels.adjoint.adjoint_block`), SuperLU's from Python."""
+        runs = [(key, len(list(g))) for key, g in
+                groupby(steps, key=lambda st: (st[2].group, id(st[4])))]
+        end = len(steps)
+        for (group, _), count in reversed(runs):
+            start = end - count
+            if group is None:
+                for j in range(end - 1, start - 1, -1):
+                    self.step(steps[j], steps[j - 1][1] if j > 0 else prev)
+            else:
+                self._block(steps, start, end, steps[start - 1][1] if start > 0 else prev)
+            end = start
+
+    def _block(self, steps: list, j0: int, j1: int, prev) -> None:
+        """Steps ``j0 .. j1-1`` (one factor group and coefficients) in one compiled call."""
+        sys0, stp, bar = self.sys0, self.stp, self.bar
+        block = steps[j0:j1]
+        K, m = len(block), len(self.vjps)
+        coef = block[0][4]
+        first = block[0][1]
+        old = (first.q, first.v, np.zeros(sys0.n_dof), np.zeros(sys0.n_con)) if prev is None \
+            else (prev.q, prev.v, prev.a, prev.lam)
+        Q, V, A, L = (np.stack([old[c]] + [(st.q, st.v, st.a, st.lam)[c] for _, st, *_ in
+                                           block]) for c in range(4))
+        k_new = np.array([b[0] for b in block], dtype=np.int64)
+        H = self._terms(k_new)
+        refine = np.array([self.refine > 0 and n > 0 and last > self.refine_tol
+                           for n, _, _, last, _ in block])
+        MU = np.zeros((K, sys0.n, m))
+        refined = np.full(K, np.nan)
+        nnz = sys0.nnz
+        initial = adjoint_block(
+            stp.S, Q, V, A, L, coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
+            self.F, k_new, stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh, sys0.indices,
+            sys0.indptr, sys0.n_dof, coef.arrays.pc, coef.arrays.upd, *H, bar["q"], bar["v"],
+            bar["a"], bar["g"], bar["lam"], np.zeros((6, nnz)),
+            np.zeros(nnz, dtype=np.complex128), np.zeros(nnz),
+            *stacked_arrays([b[2] for b in block]), refine, self.refine, MU, refined)
+        self.stats["refinement_residual"] += refined[refine].tolist()
+        E = np.zeros((K, sys0.n, self.grad.shape[0]))
+        explicit_block(self.data.S_nom, self.data.P, self.data.parts, Q, V, A, L,
+                       coef.arrays.w_new, coef.old is not None, coef.arrays.w_old, stp.scale,
+                       stp.b0, stp.b1, self.data.TAB, self.data.tab0,
+                       np.maximum(k_new - 1, 0), k_new, sys0.n_dof, self.data.pert,
+                       np.zeros((2, sys0.n), dtype=self.data.dtype), E)
+        self.grad += np.einsum("jnx,jnm->xm", E, MU)
+        if initial >= 0:
+            self.grad += self.data.dq0.T @ bar["q"] + self.data.dv0.T @ bar["v"]
+
+    def _terms(self, k_new: np.ndarray) -> tuple:
+        """The responses' own derivatives at the times ``k_new``: ``(Hq, Hv, Ha, Hl)``
+        (K, width, m), empty (0, width, m) for a history no response reads here."""
+        sys0, m = self.sys0, len(self.vjps)
+        widths = {"q": sys0.n_dof, "v": sys0.n_dof, "a": sys0.n_dof, "lam": sys0.n_con}
+        H = {}
+        for j, n in enumerate(k_new):
+            for r, vj in enumerate(self.vjps):
+                for name, g in vj.at(int(n)).items():
+                    if name not in H:
+                        H[name] = np.zeros((k_new.size, widths[name], m))
+                    H[name][j, :, r] += np.real(g)
+        return tuple(H.get(k, np.zeros((0, widths[k], m))) for k in ("q", "v", "a", "lam"))
 
     def step(self, step, prev) -> None:
         """Step ``n`` of the sweep: ``bar`` from the adjoint of ``x_n`` to that of

@@ -1,0 +1,110 @@
+"""The backward sweep of the discrete adjoint over a block of steps, in one compiled call.
+
+The exact transpose of :func:`morphlab.kernels.direct.block_recursion` (``docs/theory.md`` §7):
+for the steps of a block from the last to the first, with the adjoint of the state ``x_n``
+held in ``Bq, Bv, Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own
+derivatives at ``n`` added first (``Hq, Hv, Ha, Hl`` (K, width, m)):
+
+* ``z̄ = (ā + bh2 q̄ + gh v̄ + ga ḡ, s λ̄)``;
+* ``μ = J^-T z̄`` with the step's kept factors, refined against the exact matrix at the
+  converged point where ``refine[j]``;
+* ``q̂̄ = q̄ - R_q^T μ``, ``v̂̄ = v̄ - R_v^T μ`` (the state matrices of
+  :func:`~morphlab.kernels.direct.split_matrices`, the same as the direct method's);
+* the adjoint of ``x_n-1`` through the predictors and, with the paper's weighting, the
+  old-level share.
+
+``μ`` of every step is returned in ``MU`` (K, n, m): the design enters afterwards, through
+the partial derivatives of the residual. At the initial solve (time index 0) the sweep stops
+with ``Bq, Bv`` holding the adjoints of ``q_0, q'_0`` to meet their derivatives from ``build``.
+"""
+
+import numpy as np
+from numba import njit
+
+from .direct import csc_residual_transposed, csc_transposed_product, split_matrices
+from .newton import solve_factored_transposed
+
+
+@njit(cache=True)
+def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1, bh2, gh,
+                  indices, indptr, n_dof, pc, upd, Hq, Hv, Ha, Hl, Bq, Bv, Ba, Bg, Bl, mats, Z,
+                  J, LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, MU, refined):
+    """Steps ``K-1 .. 0`` of a block (module docstring). States ``(Q, V, A, L)[j + 1]`` are
+    step ``j``'s, ``[0]`` the one before the block; ``k_new`` (K,) their time indices; the
+    factors stacked as in ``block_recursion``; ``mats`` (6, nnz) and ``Z`` (nnz,) complex
+    scratch of the split matrices, ``J`` (nnz,) of the exact matrix; ``refined`` (K,) gets the
+    relative residual of each refined solve. Returns the position of the initial solve in the
+    block (the sweep stops there), or -1."""
+    K = MU.shape[0]
+    n = indptr.shape[0] - 1
+    m = Bq.shape[1]
+    n_con = Bl.shape[0]
+    h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
+    ga, gan, ggn = upd[0], upd[1], upd[2]
+    zb = np.empty((n, m))
+    r = np.empty((n, m))
+    work = np.empty((n, m))
+    gb = np.empty((n_dof, m))
+    D0, Dq, Dv = mats[0], mats[1], mats[2]
+    for j in range(K - 1, -1, -1):
+        _add(Bq, Hq, j)
+        _add(Bv, Hv, j)
+        _add(Ba, Ha, j)
+        _add(Bl, Hl, j)
+        for i in range(n_dof):
+            for c in range(m):
+                zb[i, c] = Ba[i, c] + bh2 * Bq[i, c] + gh * Bv[i, c] + ga * Bg[i, c]
+        for i in range(n_con):
+            for c in range(m):
+                zb[n_dof + i, c] = scale * Bl[i, c]
+        split_matrices(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, scale, b0, b1,
+                       F[k_new[j]], D0, Dq, Dv, Z)
+        mu = MU[j]
+        mu[:, :] = zb
+        solve_factored_transposed(mu, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
+        if refine[j]:
+            for p in range(J.shape[0]):
+                J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
+            for _ in range(n_refine):
+                csc_residual_transposed(J, indices, indptr, mu, zb, r)
+                solve_factored_transposed(r, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j],
+                                          pattern)
+                mu += r
+            rr, bb = csc_residual_transposed(J, indices, indptr, mu, zb, r)
+            refined[j] = rr / max(bb, 1e-300)
+        csc_transposed_product(Dq, indices, indptr, n_dof, mu, Bq)  # now the adjoint of q_hat
+        csc_transposed_product(Dv, indices, indptr, n_dof, mu, Bv)  # and of v_hat
+        if k_new[j] == 0:
+            return j
+        gb[:, :] = Bg
+        for i in range(n_dof):
+            for c in range(m):
+                qhb = Bq[i, c]
+                vhb = Bv[i, c]
+                Bg[i, c] = cqg * qhb + cvg * vhb + ggn * gb[i, c]
+                Ba[i, c] = cqa * qhb + cva * vhb + gan * gb[i, c]
+                Bv[i, c] = h * qhb + vhb
+        Bl[:, :] = 0.0
+        if has_old:  # the paper's weighting: the old level's share
+            split_matrices(S, Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, F[k_new[j] - 1],
+                           D0, Dq, Dv, Z)
+            csc_transposed_product(Dq, indices, indptr, n_dof, mu, Bq)
+            csc_transposed_product(Dv, indices, indptr, n_dof, mu, Bv)
+            r[:, :] = 0.0
+            csc_transposed_product(D0, indices, indptr, n, mu, r)
+            for i in range(n_dof):
+                for c in range(m):
+                    Ba[i, c] += r[i, c]
+            for i in range(n_con):
+                for c in range(m):
+                    Bl[i, c] += r[n_dof + i, c] / scale
+    return -1
+
+
+@njit(cache=True)
+def _add(B, H, j):
+    """``B += H[j]`` when the response terms ``H`` are present (an empty ``H``: none)."""
+    if H.shape[0] > 0:
+        for i in range(B.shape[0]):
+            for c in range(B.shape[1]):
+                B[i, c] += H[j, i, c]
