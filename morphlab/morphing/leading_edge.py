@@ -87,7 +87,8 @@ import numpy as np
 from ..errors import ModelError
 from ..model.model import Model
 from ..model.profiles import Custom, SmoothStep
-from ..results.responses import distance, ks_abs, max_by_real, rms
+from ..results import responses
+from ..results.responses import distance
 from . import airfoil
 
 __all__ = [
@@ -278,26 +279,20 @@ def shape_errors(result) -> np.ndarray:
     return distance(pos, target(n_elements=pos.shape[0] - 1))
 
 
-def rms_error(result):
-    """Root-mean-square shape error at the final time (paper eq. 42) [mm]; complex-safe."""
-    return rms(shape_errors(result))
+def _target_of(n_nodes: int) -> np.ndarray:
+    return target(n_elements=n_nodes - 1)
 
 
-def max_error(result):
-    """Largest node error at the final time [mm]: the exact maximum, the node picked by the
-    real part (its derivative is that node's, exact where the maximiser is unique)."""
-    return max_by_real(shape_errors(result))
-
-
-def ks_max_stress(result, rho_ks: float = RHO_KS):
-    """Kreisselmeier–Steinhauser maximum of the skin stress magnitude (paper eq. 40) [MPa].
-
-    Aggregates ``sigma`` and ``-sigma`` over all elements, both element ends, both fibres and
-    all time steps: ``KS = s* + ln(sum exp(rho (s - s*))) / rho``, ``s*`` the largest real
-    part (shift against overflow). ``rho_ks`` in 1/MPa, see :data:`RHO_KS`.
-    """
-    return ks_abs(result.stress("skin"), rho_ks)
-
+#: Root-mean-square shape error at the final time (paper eq. 42) [mm]: a response (callable
+#: with a Result, complex-safe, with a ``vjp`` for the adjoint method).
+rms_error = responses.rms_error("skin", _target_of)
+#: Largest node error at the final time [mm]: the exact maximum, the node picked by the real
+#: part (its derivative is that node's, exact where the maximiser is unique).
+max_error = responses.max_error("skin", _target_of)
+#: Kreisselmeier–Steinhauser maximum of the skin stress magnitude (paper eq. 40) [MPa], over
+#: ``sigma`` and ``-sigma`` of all elements, both element ends, both fibres and all time steps,
+#: with the absolute aggregation parameter :data:`RHO_KS` [1/MPa].
+ks_max_stress = responses.ks_max_stress("skin", RHO_KS)
 
 #: The study's responses, complex-safe functions of a :class:`morphlab.Result`.
 RESPONSES = {"ks_max_stress": ks_max_stress, "rms_error": rms_error, "max_error": max_error}

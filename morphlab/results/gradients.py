@@ -80,3 +80,77 @@ def response_vjp(name: str, fn, result) -> ResponseVJP:
     if not np.isfinite(out.value):
         raise SensitivityError(f"response {name!r} is not finite ({out.value!r})")
     return out
+
+
+# ------------------------------------------------------------- derivatives of the accessors
+def stress_vjp(result, body: str, G: np.ndarray, times) -> tuple[np.ndarray, np.ndarray]:
+    """Derivatives of ``sum(G * result.stress(body)[times])``: with respect to ``q`` at each
+    of ``times`` ((len(times), n_dof)) and to the stress maps ``elem_B`` of the beam's
+    elements ((n_elem, 2, 2, 6)). ``G`` (len(times), n_elem, 2, 2)."""
+    system = result.system
+    info = system.body(body)
+    sl = info.elements
+    ed = system.elem_dofs[sl]
+    B = np.real(system.elem_B[sl]).reshape(-1, 4, 6)
+    Gr = np.real(G).reshape(G.shape[0], -1, 4)  # (k, n_e, 4)
+    gq_local = np.einsum("ken,enj->kej", Gr, B)  # (k, n_e, 6)
+    dq = np.zeros((G.shape[0], system.n_dof))
+    keep = ed >= 0
+    for j in range(6):
+        rows = np.flatnonzero(keep[:, j])
+        np.add.at(dq, (slice(None), ed[rows, j]), gq_local[:, rows, j])
+    qe = np.where(keep, np.real(result.q[times])[:, np.maximum(ed, 0)], 0.0)  # (k, n_e, 6)
+    dB = np.einsum("ken,kej->enj", Gr, qe).reshape(B.shape[0], 2, 2, 6)
+    return dq, dB
+
+
+def node_positions_vjp(result, body: str, time_index: int, G: np.ndarray):
+    """Derivatives of ``sum(G * result.node_positions(body, time_index))`` (G (n_nodes, 2)):
+    with respect to ``q`` at that time (n_dof,) and to the beam's node positions in its frame
+    ``X`` (n_nodes, 2)."""
+    system = result.system
+    info = system.body(body)
+    q = np.real(result.q[time_index])
+    nd = info.node_dofs
+    w = np.where(nd >= 0, q[np.maximum(nd, 0)], 0.0)
+    th = q[info.ref[2]]
+    c, s = np.cos(th), np.sin(th)
+    u = np.real(info.X) + w[:, :2]
+    G = np.real(G)
+    dq = np.zeros(system.n_dof)
+    dq[info.ref[0]] = G[:, 0].sum()
+    dq[info.ref[1]] = G[:, 1].sum()
+    # d(A u)/dth = A Ĩ u = (-s ux - c uy, c ux - s uy)
+    dq[info.ref[2]] = np.sum(G[:, 0] * (-s * u[:, 0] - c * u[:, 1])
+                             + G[:, 1] * (c * u[:, 0] - s * u[:, 1]))
+    AtG = np.stack([c * G[:, 0] + s * G[:, 1], -s * G[:, 0] + c * G[:, 1]], axis=1)
+    for j in range(2):
+        ok = nd[:, j] >= 0
+        np.add.at(dq, nd[ok, j], AtG[ok, j])
+    return dq, AtG
+
+
+def rigid_point_vjp(result, body: str, at, time_index: int, g: np.ndarray):
+    """Derivatives of ``g · result.point_positions(body, at)[time_index]`` for a point of a
+    rigid body (g (2,)): ``x = R + A(th) A(th0)^T (at - R0)`` with ``(R0, th0)`` the body's
+    initial coordinates: with respect to ``q`` at that time (n_dof,) and to ``q0`` (n_dof,)."""
+    system = result.system
+    info = system.body(body)
+    q = np.real(result.q[time_index])
+    q0 = np.real(system.q0)
+    R0, th0 = q0[info.ref[:2]], q0[info.ref[2]]
+    d = np.real(np.asarray(at, dtype=complex)) - R0
+    c0, s0 = np.cos(th0), np.sin(th0)
+    u0 = np.array([c0 * d[0] + s0 * d[1], -s0 * d[0] + c0 * d[1]])
+    th = q[info.ref[2]]
+    c, s = np.cos(th), np.sin(th)
+    g = np.real(np.asarray(g))
+    dq = np.zeros(system.n_dof)
+    dq[info.ref[:2]] = g
+    dq[info.ref[2]] = g @ np.array([-s * u0[0] - c * u0[1], c * u0[0] - s * u0[1]])
+    # through u0: dx/du0 = A(th); du0/dR0 = -A(th0)^T; du0/dth0 = -Ĩ u0 (d A(th0)^T/dth0 d)
+    gu = np.array([c * g[0] + s * g[1], -s * g[0] + c * g[1]])  # A^T g
+    dq0 = np.zeros(system.n_dof)
+    dq0[info.ref[:2]] = -np.array([c0 * gu[0] - s0 * gu[1], s0 * gu[0] + c0 * gu[1]])
+    dq0[info.ref[2]] = gu @ np.array([u0[1], -u0[0]])
+    return dq, dq0
