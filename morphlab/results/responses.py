@@ -11,6 +11,7 @@ The factories below return such functions; their values are plain numbers for a 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -149,13 +150,20 @@ class ks_max_stress:  # noqa: N801 - a response factory, named like the function
         near the peak), whatever the stress scale.
     times : slice, optional
         The time steps aggregated (default: all).
+    rho_ks : float, optional
+        The earlier name of ``rho`` (deprecated).
 
     Has ``vjp`` (the adjoint method): the derivatives with respect to ``q`` at every time,
     streamed, and to the stress maps ``elem_B``.
     """
 
     def __init__(self, body: str, rho: float | None = None, *, rho_rel: float = 100.0,
-                 times: slice | None = None):
+                 times: slice | None = None, rho_ks: float | None = None):
+        if rho_ks is not None:  # the earlier name of ``rho``
+            warnings.warn("ks_max_stress(rho_ks=...) is now ks_max_stress(rho=...); without "
+                          "rho the aggregate is scale-free (rho_rel)", DeprecationWarning,
+                          stacklevel=2)
+            rho = rho_ks if rho is None else rho
         if rho is not None and not rho > 0:
             raise ModelError(f"ks_max_stress: rho must be positive, got {rho!r}")
         if not rho_rel > 0:
