@@ -204,6 +204,20 @@ def test_time_budget():
     assert res.design == {"x": -1.2, "y": 1.0}
 
 
+def test_a_failing_run_stops_with_the_best_design_so_far():
+    def fn(p):
+        if p["a"] > 1.5:
+            raise ml.ConvergenceError("Newton did not converge")
+        return quadratic(p)
+
+    res = optimize(quadratic_problem(Counted(fn)), "SLSQP", options=SLSQP)
+    assert res.status == "error" and "Newton did not converge" in res.message
+    failed = re.search(r"the run at \{'a': ([-+.e\d]+), 'b': ", res.message)
+    assert failed and float(failed.group(1)) > 1.5  # the message names the failing design
+    best = min((r for r in res.history.evaluations if r["new"]), key=lambda r: r["objective"])
+    assert res.objective == best["objective"] and res.design["a"] <= 1.5
+
+
 def test_save_load_round_trip(tmp_path):
     res = optimize(rosenbrock_problem(), "SLSQP", max_runs=8, options=SLSQP)
     res.save(tmp_path / "opt.npz")
@@ -341,8 +355,8 @@ def test_simulation_problem_exact_gradients_beat_derivative_free(cantilever_prob
     # antiparallel to the active constraint's; SLSQP's Lagrangian-gradient test (ftol) leaves
     # an angle ~ ftol / |grad f| (normalised) far below the 1.4e-3 rad that 1e-6 allows
     s = ml.sensitivities(tip_loaded_cantilever, exact.design, pr.responses, **SETTINGS)
-    ge = np.array([s.gradients["error"][v] for v in ("t", "F")]) * pr._factor
-    gs = np.array([s.gradients["stress"][v] for v in ("t", "F")]) * pr._factor
+    ge = np.array([s.gradients["error"][v] for v in ("t", "F")]) * pr.factor
+    gs = np.array([s.gradients["stress"][v] for v in ("t", "F")]) * pr.factor
     cos = ge @ gs / np.linalg.norm(ge) / np.linalg.norm(gs)
     assert cos == pytest.approx(-1.0, abs=1e-6)
     # cost to come within 0.1 % of the optimal objective

@@ -71,6 +71,7 @@ class _Run:
     t0: float = field(default_factory=time.perf_counter)
     last_x: np.ndarray = None
     diagnostics: dict = field(default_factory=dict)
+    current: dict = None  # design of the run under way
 
     def elapsed(self) -> float:
         return self.t_offset + time.perf_counter() - self.t0
@@ -88,6 +89,7 @@ class _Run:
             if self.max_time is not None and self.elapsed() >= self.max_time:
                 raise _Budget(f"time budget max_time={self.max_time} s reached")
         if new:
+            self.current = {v: self.problem.to_design(x)[v] for v in self.problem.variables}
             values, grads, n_sim = self.problem.evaluate(self.problem.to_design(x),
                                                          self.gradient)
             entry = self.cache[key] = (values, grads)
@@ -107,7 +109,7 @@ class _Run:
 
     def jac(self, x) -> np.ndarray:
         g, p = self.get(x)[1][self.problem.objective], self.problem
-        return np.array([g[v] for v in p.variables]) * p._factor / self.f_scale
+        return np.array([g[v] for v in p.variables]) * p.factor / self.f_scale
 
     def g_rows(self, values) -> np.ndarray:
         """Scipy's constraint rows ``sign (r - limit) / s``, all of them."""
@@ -136,7 +138,7 @@ class _Run:
         grads = self.get(x)[1]
         p = self.problem
         rows = [[s * grads[r][v] for v in p.variables] for r, _, s, _ in p.rows]
-        return np.array(rows) * p._factor[None, :] / self.c_scales[:, None]
+        return np.array(rows) * p.factor[None, :] / self.c_scales[:, None]
 
     def record_iteration(self, x) -> None:
         """One accepted iterate (scipy's callback): history and progress line."""
@@ -259,7 +261,7 @@ def optimize(problem: Problem, optimizer: str = "SLSQP", *, gradient: str = "exa
         raise ModelError(f"feasibility_tol must be a float >= 0, got {feasibility_tol!r}")
     run, x0 = _start(problem, optimizer, gradient, max_runs, max_time, progress, resume)
     x_bounds = [((lo - o) / f, (hi - o) / f) for (lo, hi), o, f in
-                zip(problem.bounds, problem._offset, problem._factor)]
+                zip(problem.bounds, problem.offset, problem.factor)]
     kwargs = {"bounds": x_bounds, "tol": tol, "options": dict(options or {}),
               "callback": lambda intermediate_result: run.record_iteration(
                   intermediate_result.x)}
@@ -281,7 +283,7 @@ def optimize(problem: Problem, optimizer: str = "SLSQP", *, gradient: str = "exa
     except SolverError as exc:
         if not any(r["new"] for r in run.history.evaluations):
             raise  # the start design itself does not run
-        status, message = "error", f"a run failed: {exc}"
+        status, message = "error", f"the run at {run.current} failed: {exc}"
     return _finish(run, optimizer, x_end, status, message, feasibility_tol)
 
 

@@ -104,8 +104,20 @@ class Problem:
     scale : dict[str, float], optional
         Optimizer variable ``x_i = p_i / scale_i`` instead of the bounds' [0, 1] map.
     normalize : bool
-        Divide the objective and the constraints by their magnitudes at ``p0`` (module
-        docstring).
+        Divide the objective and the constraints by their magnitudes at ``p0`` (see
+        :mod:`morphlab.studies.optimize`).
+
+    Attributes
+    ----------
+    p0, variables, responses, objective, constraints, settings, method, normalize :
+        As given (``responses`` of a function problem: a dict of the recorded names).
+    bounds : list of (float, float)
+        ``(low, high)`` of each variable, infinite for an open side.
+    offset, factor : ndarray, shape (n_variables,)
+        The optimizer's variables are ``x = (p - offset) / factor``.
+    rows : list of (str, str, float, float)
+        Scipy's constraint rows ``(response, "ineq" or "eq", sign, limit)``: ``sign (r - limit)
+        >= 0`` or ``== 0``.
     """
 
     def __init__(self, build: Callable[[dict], object], p0: Mapping[str, float],
@@ -165,6 +177,8 @@ class Problem:
         self.p0 = {k: float(np.real(v)) for k, v in p0.items()}
         self.variables = list(self.p0) if variables is None else list(variables)
         unknown = [v for v in self.variables if v not in self.p0]
+        if len(set(self.variables)) != len(self.variables):
+            raise ModelError(f"variables {self.variables} name a variable twice")
         if unknown or not self.variables:
             raise ModelError(f"variables {unknown or '[]'} are not design variables of p0 "
                              f"(known: {list(self.p0)})")
@@ -175,20 +189,22 @@ class Problem:
             if not isinstance(c, Constraint) or c.response not in names:
                 raise ModelError(f"constraints must be Constraint(response, ...) on one of "
                                  f"{names}, got {c!r}")
+        if not isinstance(normalize, bool):
+            raise ModelError(f"normalize must be True or False, got {normalize!r}")
         self.objective, self.constraints, self.normalize = objective, constraints, normalize
         self.rows = [(c.response,) + r for c in constraints for r in c.rows()]
-        self.bounds, self._offset, self._factor = _scaling(self.p0, self.variables, bounds,
+        self.bounds, self.offset, self.factor = _scaling(self.p0, self.variables, bounds,
                                                            scale)
 
     def to_x(self, design: Mapping) -> np.ndarray:
         """Optimizer vector of a design (dict of at least the variables)."""
         p = np.array([float(design[v]) for v in self.variables])
-        return (p - self._offset) / self._factor
+        return (p - self.offset) / self.factor
 
     def to_design(self, x: np.ndarray) -> dict:
         """Full design dict (fixed entries of ``p0`` included) of an optimizer vector."""
         p = dict(self.p0)
-        p.update(zip(self.variables, (self._offset + self._factor * x).tolist()))
+        p.update(zip(self.variables, (self.offset + self.factor * x).tolist()))
         return p
 
     def evaluate(self, p: dict, gradient: str | None) -> tuple[dict, dict | None, int]:
