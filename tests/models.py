@@ -36,3 +36,16 @@ def flexible_mechanism(gravity=(0.0, -9.81e3), n_elem=6):
     m.add_force(coupler, at=tuple(nodes[n_elem // 2]), force=(0.0, -2.0),
                 profile=ml.SmoothStep(0.0, 0.05), name="F")
     return m
+
+
+def tip_loaded_cantilever(p, n_elem=4, length=100.0):
+    """Aluminium strip (width 10 mm, thickness ``p["t"]`` [mm]) clamped at x = 0, a tip force
+    ``-p["F"]`` [N] in y switched on smoothly over 4 ms, no gravity: the design model of the
+    optimization and uncertainty tests (first bending period about 6 ms at t = 2 mm)."""
+    m = ml.Model(gravity=(0.0, 0.0), name="cantilever")
+    beam = m.add_beam(straight_nodes(n_elem, length), E=E_AL, rho=RHO_AL, thickness=p["t"],
+                      width=10.0, damping=1e-4, name="beam")
+    m.add_fix(beam, at=(0.0, 0.0), dofs="xyr", name="clamp")
+    m.add_force(beam, at=(length, 0.0), force=(0.0, -p["F"]), profile=ml.SmoothStep(0.0, 4e-3),
+                name="F")
+    return m

@@ -1,4 +1,5 @@
-"""Figures of models, motions, stresses, shape errors, sensitivities, timings and energy.
+"""Figures of models, motions, stresses, shape errors, sensitivities, timings, energy
+and optimization histories.
 
 Every function returns a :class:`matplotlib.figure.Figure` and never calls ``plt.show``. Without
 an ``ax`` argument the figure is a bare :class:`~matplotlib.figure.Figure` (not registered with
@@ -27,7 +28,9 @@ Figures must stay readable when printed in grey:
 
 from ._common import DEFAULT_UNITS, arc_coordinate
 from .charts import (
+    design_path,
     node_sensitivities,
+    optimization_history,
     profile_comparison,
     sensitivity_map,
     stress_map,
@@ -37,7 +40,7 @@ from .charts import (
 from .run import animate, energy, model, snapshots
 
 __all__ = [
-    "DEFAULT_UNITS", "animate", "arc_coordinate", "energy", "model", "node_sensitivities",
-    "profile_comparison", "sensitivity_map", "snapshots", "stress_map", "timing_bars",
-    "timing_curves",
+    "DEFAULT_UNITS", "animate", "arc_coordinate", "design_path", "energy", "model",
+    "node_sensitivities", "optimization_history", "profile_comparison", "sensitivity_map",
+    "snapshots", "stress_map", "timing_bars", "timing_curves",
 ]

@@ -1,0 +1,367 @@
+"""Design optimization (morphlab.studies.optimize) on problems whose optimum is known.
+
+Analytic problems through ``Problem.from_function`` (variables scaled to [0, 1] by their
+bounds, so the tolerances below are in those scaled units unless said otherwise):
+
+* a convex quadratic ``(a-3)² + 2(b+1)² + (a-3)(b+1)/2`` on ``a in [0, 2]``, ``b in [-5, 5]``:
+  the unconstrained minimum (3, -1) is cut off by ``a <= 2``; at ``a = 2`` the b-stationarity
+  ``4(b+1) - 1/2 = 0`` gives ``b = -7/8``. Bound multiplier ``-df/da = 31/16`` per unit of a;
+* Rosenbrock ``(1-x)² + 100(y-x²)²`` with ``g = x + 2(y - 1/4)² <= 1/2``: every feasible point
+  has ``x <= 1/2``, so ``f >= (1-x)² >= 1/4``, with equality only at ``(1/2, 1/4)`` (on the
+  valley ``y = x²`` and on the constraint): the unique minimiser, a KKT point with the
+  multiplier ``mu = 2(1 - 1/2) = 1`` (strictly active);
+* ``x + y`` on the circle ``x² + y² = 2`` (equality): ``(-1, -1)``, multiplier 1/2;
+* ``(x-c)² + (y-c)²`` with ``1 <= x + y <= 2`` (one constraint, both sides): the projection
+  of (c, c) on the band, ``(1, 1)`` for c = 2 (upper side active) and ``(1/2, 1/2)`` for
+  c = -1 (lower side).
+
+Tolerances come from the optimizers' stopping rules. SLSQP (``ftol = 1e-12``) stops when the
+objective changes by less than ``ftol``; with the smallest reduced Hessian of these problems
+``h = 16`` in scaled variables (the circle: ``2 x 1/2 x 4²``) that leaves at most
+``sqrt(2 ftol / h) = 3.5e-7``: we assert 1e-6. trust-constr is an interior-point method that
+stops on its Lagrangian-gradient test (``gtol = 1e-10``) with an active inequality at a slack
+``s = mu_barrier / lambda`` (``lambda`` the multiplier in scaled variables): we assert
+``2 mu_barrier / lambda + 1e-8`` with its final barrier parameter.
+
+One small simulation problem (a cantilever, ``tests/models.py``) compares exact gradients,
+finite differences and a derivative-free method on the same optimum.
+"""
+
+import io
+import re
+from contextlib import redirect_stdout
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from models import tip_loaded_cantilever
+
+import morphlab as ml
+from morphlab.studies import Constraint, OptimizationResult, Problem, optimize
+
+SLSQP = {"ftol": 1e-12, "maxiter": 300}
+TRUST = {"gtol": 1e-10, "xtol": 1e-12, "barrier_tol": 1e-12, "maxiter": 3000}
+OPTIONS = {"SLSQP": SLSQP, "trust-constr": TRUST}
+SLSQP_TOL = 1e-6  # sqrt(2 ftol / h), h = 16 (module docstring), with a factor 3
+# the cantilever problem (tests/models.py)
+SETTINGS = {"t_end": 0.012, "dt": 2.5e-4}  # two bending periods in 48 steps
+TIP = (100.0, 0.0)
+TARGET_DESIGN = {"t": 2.2, "F": 1.3}
+STRESS_LIMIT = 25.0  # MPa, below the KS stress of the target design (27.2): active
+
+
+class Counted:
+    """A function problem that counts and logs its calls."""
+
+    def __init__(self, fn):
+        self.fn, self.calls, self.log = fn, 0, []
+
+    def __call__(self, p):
+        self.calls += 1
+        out = self.fn(p)
+        self.log.append((dict(p), out[0]))
+        return out
+
+
+def quadratic(p):
+    a, b = p["a"], p["b"]
+    f = (a - 3) ** 2 + 2 * (b + 1) ** 2 + 0.5 * (a - 3) * (b + 1)
+    return {"f": f}, {"f": {"a": 2 * (a - 3) + 0.5 * (b + 1), "b": 4 * (b + 1) + 0.5 * (a - 3)}}
+
+
+def rosenbrock(p):
+    x, y = p["x"], p["y"]
+    values = {"f": (1 - x) ** 2 + 100 * (y - x * x) ** 2, "g": x + 2 * (y - 0.25) ** 2}
+    grads = {"f": {"x": -2 * (1 - x) - 400 * x * (y - x * x), "y": 200 * (y - x * x)},
+             "g": {"x": 1.0, "y": 4 * (y - 0.25)}}
+    return values, grads
+
+
+def circle(p):
+    x, y = p["x"], p["y"]
+    return {"f": x + y, "h": x * x + y * y}, {"f": {"x": 1.0, "y": 1.0},
+                                              "h": {"x": 2 * x, "y": 2 * y}}
+
+
+def quadratic_problem(fn=quadratic):
+    return Problem.from_function(fn, {"a": 0.5, "b": 4.0}, "f",
+                                 bounds={"a": (0.0, 2.0), "b": (-5.0, 5.0)})
+
+
+def rosenbrock_problem(fn=rosenbrock, **kw):
+    return Problem.from_function(fn, {"x": -1.2, "y": 1.0}, "f",
+                                 constraints=[Constraint("g", upper=0.5)],
+                                 bounds={"x": (-2.0, 2.0), "y": (-1.0, 3.0)}, **kw)
+
+
+def scaled_error(problem, design, exact):
+    return float(np.max(np.abs(problem.to_x(design) - problem.to_x(exact))))
+
+
+def trust_tol(result, multiplier):
+    """Interior-point slack of the active inequality, ``mu / lambda``, times 2, + 1e-8."""
+    return 2.0 * result.info["scipy"]["barrier_parameter"] / multiplier + 1e-8
+
+
+@pytest.mark.parametrize("method", ["SLSQP", "trust-constr"])
+def test_convex_quadratic_with_an_active_bound(method):
+    pr = quadratic_problem()
+    res = optimize(pr, method, options=OPTIONS[method])
+    exact = {"a": 2.0, "b": -0.875}
+    # multiplier of the bound a <= 2 in scaled variables: 31/16 per unit a x range 2
+    tol = SLSQP_TOL if method == "SLSQP" else trust_tol(res, 31 / 8)
+    assert res.status == "converged" and res.feasible
+    assert scaled_error(pr, res.design, exact) < tol
+    # f* = 1 + 2/64 - 1/16; off the bound by the scaled slack s, f - f* = 31/8 s + O(s²)
+    assert abs(res.objective - 0.96875) <= 31 / 8 * tol + 1e-14
+
+
+@pytest.mark.parametrize("method", ["SLSQP", "trust-constr"])
+def test_rosenbrock_with_an_active_nonlinear_constraint(method):
+    pr = rosenbrock_problem()
+    res = optimize(pr, method, options=OPTIONS[method])
+    # multiplier mu = 1 per unit g; dg/dx = 1 and x spans 4: 4 per scaled unit
+    tol = SLSQP_TOL if method == "SLSQP" else trust_tol(res, 4.0)
+    assert res.status == "converged" and res.feasible
+    assert scaled_error(pr, res.design, {"x": 0.5, "y": 0.25}) < tol
+    assert res.values["g"] == pytest.approx(0.5, abs=4 * tol)  # active: g = x + O(dy²)
+
+
+@pytest.mark.filterwarnings("ignore:delta_grad == 0.0")  # BFGS on the linear objective
+@pytest.mark.parametrize("method", ["SLSQP", "trust-constr"])
+def test_equality_constraint(method):
+    pr = Problem.from_function(circle, {"x": 0.5, "y": -1.5}, "f",
+                               constraints=[Constraint("h", equals=2.0)],
+                               bounds={"x": (-2.0, 2.0), "y": (-2.0, 2.0)})
+    res = optimize(pr, method, options=OPTIONS[method])
+    # no inequality: both stop on KKT residuals <= 1e-10, distance <= 1e-10 / h (h = 16)
+    assert res.status == "converged" and res.feasible
+    assert scaled_error(pr, res.design, {"x": -1.0, "y": -1.0}) < SLSQP_TOL
+    assert abs(res.values["h"] - 2.0) < 1e-6  # feasibility_tol of the result
+
+
+@pytest.mark.parametrize("c, exact", [(2.0, 1.0), (-1.0, 0.5)])
+@pytest.mark.parametrize("method", ["SLSQP", "COBYQA"])
+def test_two_sided_constraint(method, c, exact):
+    def fn(p):
+        x, y = p["x"], p["y"]
+        return ({"f": (x - c) ** 2 + (y - c) ** 2, "s": x + y},
+                {"f": {"x": 2 * (x - c), "y": 2 * (y - c)}, "s": {"x": 1.0, "y": 1.0}})
+
+    pr = Problem.from_function(fn, {"x": 0.7, "y": 0.6}, "f",
+                               constraints=[Constraint("s", lower=1.0, upper=2.0)],
+                               bounds={"x": (-3.0, 3.0), "y": (-3.0, 3.0)})
+    options = SLSQP if method == "SLSQP" else {"final_tr_radius": 1e-9}
+    res = optimize(pr, method, options=options)
+    # COBYQA: its quadratic model of this quadratic objective is exact, so the last
+    # trust-region radius (1e-9) bounds the error; 1e-6 leaves room for the linear constraint
+    assert res.status == "converged" and res.feasible
+    assert scaled_error(pr, res.design, {"x": exact, "y": exact}) < SLSQP_TOL
+
+
+@pytest.mark.parametrize("method", ["SLSQP", "trust-constr"])
+def test_one_run_per_design_serves_objective_gradient_and_constraints(method):
+    fn = Counted(rosenbrock)
+    res = optimize(rosenbrock_problem(fn), method, options=OPTIONS[method])
+    hist = res.history
+    requests = hist.column("evaluations", "design")
+    new = hist.column("evaluations", "new")
+    distinct = {row.tobytes() for row in requests}
+    # one call of fn per distinct design, whatever scipy asked there
+    assert fn.calls == res.n_runs == new.sum() == len(distinct)
+    # scipy asked for objective, gradient, constraints and their Jacobian: >= 2 requests per
+    # design on average (a line-search point without gradient costs fun + constraints)
+    assert len(requests) >= 2 * fn.calls
+    assert res.n_simulations == res.n_runs
+
+
+def test_finite_difference_gradients_cost_n_plus_one_calls():
+    fn = Counted(lambda p: (rosenbrock(p)[0], None))
+    res = optimize(rosenbrock_problem(fn), "SLSQP", gradient="finite-difference",
+                   options=SLSQP)
+    assert fn.calls == 3 * res.n_runs == res.n_simulations  # n + 1 = 3 per design
+    # forward differences (relative step 1e-6): gradient error ~1e-6 * f'' ~ 1e-4 absolute
+    # near x = 1/2 (f'' ~ 200), shifting the optimum by ~1e-4 / h_reduced (3264): 1e-6
+    assert scaled_error(rosenbrock_problem(), res.design, {"x": 0.5, "y": 0.25}) < 1e-5
+
+
+def test_budget_stops_with_the_best_feasible_design():
+    fn = Counted(rosenbrock)
+    res = optimize(rosenbrock_problem(fn), "SLSQP", max_runs=5, options=SLSQP)
+    assert res.status == "budget" and "max_runs=5" in res.message
+    assert fn.calls == res.n_runs == 5
+    feasible = [(v["f"], p) for p, v in fn.log if v["g"] <= 0.5 + 1e-6]
+    f_best, p_best = min(feasible, key=lambda t: t[0])
+    assert res.feasible and res.objective == f_best
+    assert res.design == p_best
+
+
+def test_time_budget():
+    fn = Counted(rosenbrock)
+    res = optimize(rosenbrock_problem(fn), "COBYLA", max_time=1e-9)
+    # the start design is always run; the budget stops the next run
+    assert res.status == "budget" and fn.calls == 1
+    assert res.design == {"x": -1.2, "y": 1.0}
+
+
+def test_a_failing_run_stops_with_the_best_design_so_far():
+    def fn(p):
+        if p["a"] > 1.5:
+            raise ml.ConvergenceError("Newton did not converge")
+        return quadratic(p)
+
+    res = optimize(quadratic_problem(Counted(fn)), "SLSQP", options=SLSQP)
+    assert res.status == "error" and "Newton did not converge" in res.message
+    failed = re.search(r"the run at \{'a': ([-+.e\d]+), 'b': ", res.message)
+    assert failed and float(failed.group(1)) > 1.5  # the message names the failing design
+    best = min((r for r in res.history.evaluations if r["new"]), key=lambda r: r["objective"])
+    assert res.objective == best["objective"] and res.design["a"] <= 1.5
+
+
+def test_save_load_round_trip(tmp_path):
+    res = optimize(rosenbrock_problem(), "SLSQP", max_runs=8, options=SLSQP)
+    res.save(tmp_path / "opt.npz")
+    back = OptimizationResult.load(tmp_path / "opt.npz")
+    for name in ("design", "values", "objective", "feasible", "max_violation", "status",
+                 "message", "n_runs", "n_simulations", "wall_time", "optimizer", "gradient",
+                 "info"):
+        assert getattr(back, name) == getattr(res, name), name
+    assert back.history.evaluations == res.history.evaluations
+    assert back.history.iterations == res.history.iterations
+
+
+def test_resume_continues_history_and_reaches_the_optimum(tmp_path):
+    first = optimize(rosenbrock_problem(), "SLSQP", max_runs=6, options=SLSQP)
+    assert first.status == "budget"
+    first.save(tmp_path / "first.npz")
+    fn = Counted(rosenbrock)
+    res = optimize(rosenbrock_problem(fn), "SLSQP", resume=tmp_path / "first.npz",
+                   options=SLSQP)
+    assert res.status == "converged"
+    assert scaled_error(rosenbrock_problem(), res.design, {"x": 0.5, "y": 0.25}) < SLSQP_TOL
+    assert res.n_runs == first.n_runs + fn.calls  # counted across both
+    assert fn.log[0][0] != first.design  # the restart design came from the saved history
+    n = len(first.history.evaluations)
+    assert res.history.evaluations[:n] == first.history.evaluations
+    its = res.history.column("iterations", "iteration")
+    assert np.array_equal(its, np.arange(len(its)))  # numbered on from the first part
+
+
+def test_progress_line_per_iteration():
+    out = io.StringIO()
+    with redirect_stdout(out):
+        res = optimize(quadratic_problem(), "SLSQP", progress=True, options=SLSQP)
+    lines = out.getvalue().splitlines()
+    assert len(lines) == len(res.history.iterations)
+    assert re.match(r"iter +0 +objective ", lines[0])
+    seen = []
+    optimize(quadratic_problem(), "SLSQP", progress=seen.append, options=SLSQP)
+    assert [r["iteration"] for r in seen] == list(range(len(seen)))
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: Constraint("g"), "no limit"),
+    (lambda: Constraint("g", upper=1.0, equals=0.0), "excludes"),
+    (lambda: Constraint("g", lower=2.0, upper=1.0), "lower 2.0 > upper"),
+    (lambda: optimize(Problem.from_function(rosenbrock, {"x": 0.0, "y": 0.0}, "q", bounds={
+        "x": (-1, 1), "y": (-1, 1)})), r"fn returned no value of \['q'\]"),
+    (lambda: Problem(tip_loaded_cantilever, {"t": 2.0, "F": 1.0}, {"f": lambda r: 0.0}, "q",
+                     bounds={"t": (1, 3), "F": (0, 2)}, settings=SETTINGS), "objective 'q'"),
+    (lambda: Problem.from_function(rosenbrock, {"x": 0.0, "y": 0.0}, "f",
+                                   bounds={"x": (-1, 1)}), "'y' needs finite bounds"),
+    (lambda: Problem.from_function(rosenbrock, {"x": 2.0, "y": 0.0}, "f",
+                                   bounds={"x": (-1, 1), "y": (-1, 1)}), "within bounds"),
+    (lambda: Problem(tip_loaded_cantilever, {"t": 2.0, "F": 1.0}, {"f": lambda r: 0.0}, "f",
+                     bounds={"t": (1, 3), "F": (0, 2)}, settings={"newton": "modified"}),
+     "newton"),
+    (lambda: Problem(tip_loaded_cantilever, {"t": 2.0, "F": 1.0}, {"f": lambda r: 0.0}, "f",
+                     bounds={"t": (1, 3), "F": (0, 2)}, settings={"dt": 1e-3}), "'t_end'"),
+    (lambda: optimize(rosenbrock_problem(), "Nelder-Mead"), "no constraints"),
+    (lambda: optimize(rosenbrock_problem(), "BFGS"), "unknown optimizer"),
+    (lambda: optimize(rosenbrock_problem(lambda p: (rosenbrock(p)[0], None)), "SLSQP"),
+     "no gradients"),
+])
+def test_bad_input_is_a_typed_error(make, match):
+    with pytest.raises(ml.MorphlabError, match=match):
+        make()
+
+
+def test_plots_draw_the_history():
+    import morphlab.plots as mp
+
+    res = optimize(rosenbrock_problem(), "SLSQP", options=SLSQP)
+    fig = mp.optimization_history(res)
+    assert isinstance(fig, Figure)
+    ax_obj = fig.axes[0]
+    k = res.history.column("iterations", "iteration")
+    assert np.array_equal(ax_obj.get_lines()[0].get_ydata(),
+                          res.history.column("iterations", "objective"))
+    assert np.array_equal(ax_obj.get_lines()[0].get_xdata(), k)
+    fig = mp.design_path(res)
+    x_line = fig.axes[0].get_lines()[0]
+    assert np.allclose(x_line.get_ydata(), (res.history.column("iterations", "design")[:, 0]
+                                            + 2.0) / 4.0, rtol=0, atol=1e-15)
+    with pytest.raises(ml.ModelError, match="not design variables"):
+        mp.design_path(res, variables=["z"])
+
+
+# ---------------------------------------------------------------- a simulation problem
+
+
+@pytest.fixture(scope="module")
+def cantilever_problem():
+    target = ml.simulate(tip_loaded_cantilever(TARGET_DESIGN), **SETTINGS) \
+        .point_positions("beam", TIP)[:, 1].copy()
+
+    def tip_error(res):  # mean square tip-deflection error against the target history [mm²]
+        d = res.point_positions("beam", TIP)[:, 1] - target
+        return np.mean(d * d)
+
+    responses = {"error": tip_error, "stress": ml.responses.ks_max_stress("beam", 2.0)}
+    return Problem(tip_loaded_cantilever, {"t": 1.8, "F": 0.8}, responses, "error",
+                   constraints=[Constraint("stress", upper=STRESS_LIMIT)],
+                   bounds={"t": (1.5, 3.0), "F": (0.5, 2.0)}, settings=SETTINGS,
+                   normalize=True)
+
+
+def simulations_to_reach(res, f_target):
+    """Simulations spent until the first feasible run with objective <= f_target."""
+    spent = 0
+    for rec in res.history.evaluations:
+        spent += rec["simulations"]
+        if rec["new"] and rec["objective"] <= f_target and rec["max_violation"] <= 1e-6:
+            return spent
+    return None
+
+
+def test_simulation_problem_exact_gradients_beat_derivative_free(cantilever_problem):
+    pr = cantilever_problem
+    exact = optimize(pr, "SLSQP", options={"ftol": 1e-10})
+    fd = optimize(pr, "SLSQP", gradient="finite-difference", options={"ftol": 1e-10})
+    free = optimize(pr, "COBYLA", options={"rhobeg": 0.1, "tol": 1e-7})
+    for res in (exact, fd, free):
+        assert res.status == "converged" and res.feasible, res
+    assert exact.n_simulations == exact.n_runs and fd.n_simulations == 3 * fd.n_runs
+    # the stress limit is active at the optimum (so the optimum is not the target design)
+    assert exact.values["stress"] == pytest.approx(STRESS_LIMIT, abs=1e-5)
+    # the same optimum from exact and forward-difference gradients: the difference gradient
+    # error (relative step 1e-6) moves it by ~1e-6 relative; SLSQP's ftol = 1e-10 on the
+    # normalised objective leaves ~sqrt(2e-10) = 1.4e-5 in scaled variables
+    assert scaled_error(pr, fd.design, exact.design) < 5e-5
+    # COBYLA's last trust-region radius is 1e-7 (scaled); its linear models leave the design
+    # within a small multiple of it: 100 x
+    assert scaled_error(pr, free.design, exact.design) < 1e-5
+    # KKT at the optimum, from an independent sensitivity run: the objective gradient is
+    # antiparallel to the active constraint's; SLSQP's Lagrangian-gradient test (ftol) leaves
+    # an angle ~ ftol / |grad f| (normalised) far below the 1.4e-3 rad that 1e-6 allows
+    s = ml.sensitivities(tip_loaded_cantilever, exact.design, pr.responses, **SETTINGS)
+    ge = np.array([s.gradients["error"][v] for v in ("t", "F")]) * pr.factor
+    gs = np.array([s.gradients["stress"][v] for v in ("t", "F")]) * pr.factor
+    cos = ge @ gs / np.linalg.norm(ge) / np.linalg.norm(gs)
+    assert cos == pytest.approx(-1.0, abs=1e-6)
+    # cost to come within 0.1 % of the optimal objective
+    f_target = exact.objective * (1 + 1e-3)
+    n_exact = simulations_to_reach(exact, f_target)
+    n_free = simulations_to_reach(free, f_target)
+    assert n_exact is not None and n_free is not None
+    assert n_exact < n_free
