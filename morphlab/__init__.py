@@ -35,7 +35,7 @@ __version__ = "0.1.0"
 # The application (the paper's model) and the figures are loaded on first use: ``import
 # morphlab`` loads neither the morphing study nor matplotlib.
 _LAZY = {"morphing": "morphlab.morphing", "airfoil": "morphlab.morphing.airfoil",
-         "plots": "morphlab.plots"}
+         "plots": "morphlab.plots", "studies": "morphlab.studies"}
 
 
 def __getattr__(name: str):
@@ -53,5 +53,5 @@ __all__ = [
     "Ramp", "ResourceError", "Result", "RigidBody", "SensitivityError", "SensitivityResult",
     "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError", "State", "System",
     "airfoil", "compile_model", "io", "morphing", "plots", "responses", "sensitivities",
-    "simulate", "static", "warmup", "__version__",
+    "simulate", "static", "studies", "warmup", "__version__",
 ]

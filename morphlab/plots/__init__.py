@@ -28,15 +28,14 @@ Figures must stay readable when printed in grey:
 
 from ._common import DEFAULT_UNITS, arc_coordinate
 from .charts import (
-    design_path,
     node_sensitivities,
-    optimization_history,
     profile_comparison,
     sensitivity_map,
     stress_map,
     timing_bars,
     timing_curves,
 )
+from .optimization import design_path, optimization_history
 from .run import animate, energy, model, snapshots
 
 __all__ = [

@@ -10,19 +10,22 @@ bounds' [0, 1] map by default, ``p / scale`` with a user scale (see
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ModelError, SensitivityError
-from ..sensitivity.api import METHODS, sensitivities
+from ..sensitivity.api import sensitivities
+from ..sensitivity.strategies import resolve
+from ..solve.settings import Settings
 from ..solve.timeloop import simulate
 
 GRADIENTS = ("exact", "finite-difference")
 
-_SIMULATIONS = {"direct": lambda n: 1, "direct-fd": lambda n: 1,
+# primal solves behind one gradient evaluation of n variables, by the method's name
+_SIMULATIONS = {"direct": lambda n: 1, "direct-fd": lambda n: 1, "adjoint": lambda n: 1,
                 "complex-step": lambda n: 1 + n, "forward-difference": lambda n: n + 1,
                 "central-difference": lambda n: 2 * n + 1}
 
@@ -71,10 +74,9 @@ class Constraint:
 
 
 def _settings_keywords() -> set:
-    """Solver keywords that :func:`simulate` and :func:`sensitivities` both take."""
-    a = set(inspect.signature(simulate).parameters)
-    b = set(inspect.signature(sensitivities).parameters)
-    return (a & b) - {"model", "build", "p0", "responses", "progress", "variables", "method"}
+    """The options of a run (:class:`morphlab.Settings`), taken by :func:`simulate` and
+    :func:`sensitivities` alike."""
+    return {f.name for f in dataclasses.fields(Settings)}
 
 
 class Problem:
@@ -97,10 +99,11 @@ class Problem:
     variables : list[str], optional
         Design variables (default: all of ``p0``).
     settings : dict
-        Solver keywords of :func:`morphlab.simulate` that :func:`morphlab.sensitivities` takes
-        as well (``t_end``, ``dt``, ``rho_inf``, ``tol``, ...).
-    method : str
-        Sensitivity method of ``gradient="exact"`` (see :func:`morphlab.sensitivities`).
+        The options of the runs, fields of :class:`morphlab.Settings` (``t_end``, ``dt``,
+        ``rho_inf``, ``tol``, ...).
+    method : str or strategy
+        Sensitivity method of ``gradient="exact"`` (see :func:`morphlab.sensitivities`;
+        ``"auto"`` picks the adjoint for many variables when the responses have a vjp).
     scale : dict[str, float], optional
         Optimizer variable ``x_i = p_i / scale_i`` instead of the bounds' [0, 1] map.
     normalize : bool
@@ -130,15 +133,21 @@ class Problem:
         if not isinstance(responses, Mapping) or not responses or not all(
                 callable(f) for f in responses.values()):
             raise ModelError("responses must be a non-empty dict name -> function(result)")
-        if method not in METHODS:
-            raise ModelError(f"unknown sensitivity method {method!r}; choose one of {METHODS}")
+        try:
+            resolve(method)
+        except SensitivityError as exc:
+            raise ModelError(str(exc)) from None
         settings = dict(settings or {})
         bad = sorted(set(settings) - _settings_keywords())
         if bad:
-            raise ModelError(f"settings {bad} are not solver keywords shared by simulate and "
-                             f"sensitivities; valid: {sorted(_settings_keywords())}")
+            raise ModelError(f"settings {bad} are not options of a run; valid: "
+                             f"{sorted(_settings_keywords())}")
         if "t_end" not in settings or "dt" not in settings:
             raise ModelError("settings need the end time 't_end' and step 'dt' of the runs")
+        Settings.of(**settings)  # every value valid
+        if settings.get("newton", "full") != "full":
+            raise ModelError("settings newton must be 'full': the gradients need the exact "
+                             "Newton matrix of every step")
         self.build, self._fn, self.settings, self.method = build, None, settings, method
         self.responses = dict(responses)
         self._setup(p0, list(self.responses), objective, constraints, bounds, variables,
@@ -225,7 +234,7 @@ class Problem:
         method = self.method if gradient == "exact" else "forward-difference"
         s = sensitivities(self.build, p, self.responses, method=method,
                           variables=self.variables, **self.settings)
-        return dict(s.values), s.gradients, _SIMULATIONS[method](n)
+        return dict(s.values), s.gradients, _SIMULATIONS.get(s.method, lambda n: 1)(n)
 
     def _call(self, p):
         out = self._fn(dict(p))
