@@ -15,6 +15,8 @@ constraints, an inconsistent initial configuration) is checked by ``compile_mode
 
 from __future__ import annotations
 
+import cmath
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +55,23 @@ def _has_bool(value) -> bool:
     return isinstance(value, (list, tuple)) and any(_has_bool(v) for v in value)
 
 
+_PLAIN = (int, float, complex, np.float64, np.complex128, np.int64)
+
+
+def _plain_numbers(value, shape) -> bool | None:
+    """For a Python number (``shape == ()``) or a tuple of them of length ``shape[0]``: are
+    they all finite? None for anything else (bool is not a number here)."""
+    if shape == ():
+        items = (value,)
+    elif len(shape) == 1 and type(value) is tuple and len(value) == shape[0]:
+        items = value
+    else:
+        return None
+    if not all(type(x) in _PLAIN for x in items):
+        return None
+    return all(cmath.isfinite(x) for x in items)
+
+
 def _numeric(value, what, owner, shape=(), expect="a finite number"):
     """``value`` as a numeric (integer, real or complex) array of ``shape``, all entries finite.
 
@@ -60,6 +79,11 @@ def _numeric(value, what, owner, shape=(), expect="a finite number"):
     strings, ``None``, booleans, objects, ragged sequences, wrong shapes, NaN and Inf (real or
     imaginary part). Complex values are allowed (complex-step differentiation).
     """
+    fast = _plain_numbers(value, shape)
+    if fast is not None:  # Python numbers (the common case, without NumPy's reductions)
+        if fast:
+            return np.asarray(value)
+        raise ModelError(f"{owner}: {what} must be {expect} (no NaN or Inf), got {_show(value)}")
     try:
         arr = None if _has_bool(value) else np.asarray(value)
     except (TypeError, ValueError, OverflowError):  # ragged or unconvertible sequences
@@ -270,6 +294,11 @@ class Beam(Body):
     def n_nodes(self) -> int:
         return self.nodes.shape[0]
 
+    @functools.cached_property
+    def size(self) -> float:
+        """Largest extent of the undeformed beam along x or y [length] (real parts)."""
+        return float(np.ptp(_real(self.nodes), axis=0).max())
+
     @property
     def n_elements(self) -> int:
         return self.nodes.shape[0] - 1
@@ -457,8 +486,7 @@ class Model:
         at = _point(at, "at", what)
         if isinstance(body, Beam):
             k, dist = body.nearest_node(at)
-            size = float(np.ptp(_real(body.nodes), axis=0).max())
-            tol = 1e-6 * max(size, 1.0)
+            tol = 1e-6 * max(body.size, 1.0)
             if dist > tol:
                 node = tuple(float(x) for x in np.round(_real(body.nodes[k]), 6))
                 raise ModelError(
