@@ -14,6 +14,7 @@ from .errors import (
     ModelError,
     MorphlabError,
     NonFiniteError,
+    ProfileError,
     ResourceError,
     SensitivityError,
     SingularMatrixError,
@@ -50,8 +51,8 @@ def __getattr__(name: str):
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
     "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Profile",
-    "Ramp", "ResourceError", "Result", "RigidBody", "SensitivityError", "SensitivityResult",
-    "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError", "State", "System",
-    "airfoil", "compile_model", "io", "morphing", "plots", "responses", "sensitivities",
-    "simulate", "static", "studies", "warmup", "__version__",
+    "ProfileError", "Ramp", "ResourceError", "Result", "RigidBody", "SensitivityError",
+    "SensitivityResult", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
+    "State", "System", "airfoil", "compile_model", "io", "morphing", "plots", "responses",
+    "sensitivities", "simulate", "static", "studies", "warmup", "__version__",
 ]

@@ -58,6 +58,12 @@ class NonFiniteError(SolverError):
     """A NaN or Inf appeared in the residual or the solution."""
 
 
+class ProfileError(SolverError):
+    """A time profile (of a load, a torque or a drive) raised an exception or returned a NaN or
+    Inf: the message names it and the time; ``result`` holds the steps before that time (the
+    user's exception is the ``__cause__``)."""
+
+
 class Interrupted(KeyboardInterrupt):
     """A run stopped by an interrupt (Ctrl-C / SIGINT, or a KeyboardInterrupt raised by an
     observer or a progress callback). A :class:`KeyboardInterrupt`, so code that stops on

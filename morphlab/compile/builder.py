@@ -75,8 +75,8 @@ class Builder:
         self.n_elem = 0
         self.con = {k: [] for k in ("kind", "dofs", "u0", "c0", "names", "joint")}
         self.con_drive: list = []
-        self.load = {k: [] for k in ("dofs", "u0", "F0", "prof")}
-        self.torque = {k: [] for k in ("dofs", "T0", "prof")}
+        self.load = {k: [] for k in ("dofs", "u0", "F0", "prof", "name")}
+        self.torque = {k: [] for k in ("dofs", "T0", "prof", "name")}
 
     # ---- DOFs and bodies
     def add_dofs(self, names: list[str], q0, v0) -> np.ndarray:
@@ -137,17 +137,18 @@ class Builder:
         if profile is not None:
             self.con_drive.append((len(self.con["kind"]) - 1, profile))
 
-    def add_load(self, point, force, profile: Profile) -> None:
+    def add_load(self, point, force, profile: Profile, name: str) -> None:
         """A point force ``force * profile(t)`` (global direction) at ``point``."""
         dofs, u0, _ = point
         for key, value in (("dofs", dofs), ("u0", u0), ("F0", np.asarray(force)),
-                           ("prof", profile)):
+                           ("prof", profile), ("name", name)):
             self.load[key].append(value)
 
-    def add_torque(self, dofs, magnitude, profile: Profile) -> None:
+    def add_torque(self, dofs, magnitude, profile: Profile, name: str) -> None:
         """A torque ``magnitude * profile(t)`` on the DOFs ``dofs`` (2,): a body angle and a
         nodal rotation (-1 if none)."""
-        for key, value in (("dofs", dofs), ("T0", magnitude), ("prof", profile)):
+        for key, value in (("dofs", dofs), ("T0", magnitude), ("prof", profile),
+                           ("name", name)):
             self.torque[key].append(value)
 
     # ---- the result
@@ -181,9 +182,9 @@ class Builder:
             con_u0=arr(c["u0"], (-1, 2, 2)), con_c0=np.array(c["c0"], dtype=dt),
             con_drive=self.con_drive,
             load_dofs=arr(ld["dofs"], (-1, 6), i64), load_u0=arr(ld["u0"], (-1, 2)),
-            load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"],
+            load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"], load_names=ld["name"],
             torque_dofs=arr(tq["dofs"], (-1, 2), i64), torque_T0=np.array(tq["T0"], dtype=dt),
-            torque_prof=tq["prof"],
+            torque_prof=tq["prof"], torque_names=tq["name"],
             bodies=self.bodies, dof_names=self.dof_names, con_names=c["names"],
             con_joint=c["joint"],
         )

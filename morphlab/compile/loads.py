@@ -11,7 +11,7 @@ from .builder import Builder, compiles
 @compiles(Force)
 def compile_force(f: Force, b: Builder) -> None:
     """A force of fixed global direction at a material point."""
-    b.add_load(b.point(f.body, f.at), f.force, f.profile)
+    b.add_load(b.point(f.body, f.at), f.force, f.profile, f.name)
 
 
 @compiles(Torque)
@@ -22,4 +22,4 @@ def compile_torque(t: Torque, b: Builder) -> None:
     if t.at is not None and isinstance(t.body, Beam):
         k, _ = t.body.nearest_node(t.at)
         dofs[1] = info.node_dofs[k, 2]
-    b.add_torque(dofs, t.magnitude, t.profile)
+    b.add_torque(dofs, t.magnitude, t.profile, t.name)

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ModelError
+from ..errors import ModelError, MorphlabError, ProfileError
 from ..kernels import assemble as kassemble
 from ..kernels import joints as kjoints
 from ..kernels.system import DESIGN_FIELDS, SystemArrays
@@ -98,6 +98,8 @@ class System:
     con_map_H: np.ndarray
     load_map: np.ndarray
     bodies: dict = field(default_factory=dict)
+    load_names: list = field(default_factory=list)
+    torque_names: list = field(default_factory=list)
     dof_names: list = field(default_factory=list)
     con_names: list = field(default_factory=list)
     con_joint: list = field(default_factory=list)
@@ -195,14 +197,14 @@ def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None
     times = np.asarray(times, dtype=float)
     cache = {} if cache is None else cache
 
-    def tab(prof):
+    def tab(prof, owner):
         try:
             key = (prof, times.size, float(times[0]), float(times[-1]))
             hit = cache.get(key)
         except TypeError:  # unhashable profile
             key, hit = None, None
         if hit is None:
-            hit = prof.table(times)
+            hit = _profile_table(prof, times, owner)
             if key is not None:
                 cache[key] = hit
         return hit
@@ -212,17 +214,50 @@ def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None
     CD = np.zeros_like(C)
     CDD = np.zeros_like(C)
     for row, prof in system.con_drive:
-        f, f1, f2 = tab(prof)
+        f, f1, f2 = tab(prof, f"drive {system.con_joint[row]!r}")
         C[:, row] += f
         CD[:, row] = f1
         CDD[:, row] = f2
     F = np.repeat(system.load_F0[None].astype(dt), n_t, axis=0)
     for i, prof in enumerate(system.load_prof):
-        F[:, i, :] *= tab(prof)[0][:, None]
+        F[:, i, :] *= tab(prof, f"force {system.load_names[i]!r}")[0][:, None]
     T = np.repeat(system.torque_T0[None].astype(dt), n_t, axis=0)
     for i, prof in enumerate(system.torque_prof):
-        T[:, i] *= tab(prof)[0]
+        T[:, i] *= tab(prof, f"torque {system.torque_names[i]!r}")[0]
     return TimeTable(*(np.ascontiguousarray(x) for x in (C, CD, CDD, F, T)))
+
+
+def _profile_table(prof, times: np.ndarray, owner: str) -> tuple:
+    """``prof.table(times)``, or a :class:`ProfileError` at the first time where the profile
+    (a user's function perhaps) raises or gives a NaN or Inf, naming ``owner``."""
+    try:
+        out = prof.table(times)
+        bad = ~np.all([np.isfinite(x) for x in np.broadcast_arrays(*out)], axis=0)
+        cause = None
+    except MorphlabError:  # the library's own (a profile not saved in a file)
+        raise
+    except Exception as exc:  # a user's function: find the first time it fails at
+        cause = exc
+        bad = np.zeros(times.size, dtype=bool)
+        for k, t in enumerate(times):
+            try:
+                vals = (prof.value(float(t)), prof.d1(float(t)), prof.d2(float(t)))
+            except Exception as exc_k:
+                cause, bad[k] = exc_k, True
+                break
+            if not np.all(np.isfinite(vals)):
+                bad[k] = True
+                break
+    if not bad.any():
+        if cause is not None:  # a table that fails where every time alone does not
+            raise ProfileError(f"the profile of {owner} failed: {type(cause).__name__}: "
+                               f"{cause}", time=float(times[0]), step=0) from cause
+        return out
+    k = int(np.argmax(bad))
+    what = (f"raised {type(cause).__name__}: {cause}" if cause is not None
+            else "gave a NaN or Inf (value or derivative)")
+    raise ProfileError(f"the profile of {owner} {what} at t={times[k]:.6g}", time=float(times[k]),
+                       step=k) from cause
 
 
 def table_at(table: TimeTable, k: int) -> TimeArrays:

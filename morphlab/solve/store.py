@@ -115,7 +115,7 @@ class HistoryStore:
         """The Result's history fields up to the last recorded step (copies of in-memory
         arrays, views of memory maps); ``table``: the run's time table."""
         sl = slice(0, self.n_done + 1)
-        if self._batch and self.system.n_con and self.n_done >= 0:
+        if self._batch and self.system.n_con and self.n_done >= 0 and table is not None:
             s = self.system
             constraint_violation_history(self.arrays["q"][sl], self.arrays["v"][sl],
                                          np.ascontiguousarray(table.C[sl]),

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..compile import System, compile_model
 from ..compile.system import TimeTable, table_at, time_table
-from ..errors import Interrupted, ModelError, SolverError
+from ..errors import Interrupted, ModelError, ProfileError, SolverError
 from ..model.model import Model
 from ..results.result import Result
 from .cache import announce_compilation
@@ -77,7 +77,16 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     t = settings.t_start + settings.h * np.arange(n_steps + 1)
     hist = HistoryStore(system, t, store, memmap)
     stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
-    table = time_table(system, t)
+    try:
+        table, failure = time_table(system, t), None
+    except ProfileError as err:  # run the steps before the failing time, then raise it
+        failure = err
+        if err.step == 0:
+            err.result = Result(system=system, settings=settings, status="failed",
+                                message=str(err), **hist.result_fields(None))
+            raise
+        table = time_table(system, t[:err.step])
+        n_steps = err.step - 1
     reductions: list = []
     t_wall = _time.perf_counter()
 
@@ -120,6 +129,9 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                                time=float(t[k]) if k >= 0 else None, step=k,
                                result=make_result("interrupted", "interrupted by the user"))
             raise stop from err
+    if failure is not None:
+        failure.result = make_result("failed", str(failure))
+        raise failure
     return make_result("ok", f"completed {n_steps} steps")
 
 

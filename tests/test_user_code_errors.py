@@ -1,0 +1,54 @@
+"""User code that fails inside a run (a time profile raising or returning NaN) stops the run at
+that time with a typed error that names the load, torque or drive and the time, and keeps the
+steps before it (the user's exception is the cause)."""
+
+import numpy as np
+import pytest
+from models import flexible_mechanism
+
+import morphlab as ml
+
+RUN = dict(t_end=0.02, dt=1e-3)
+
+
+def _with_torque_profile(f):
+    m = flexible_mechanism()
+    m.add_torque(m.body("crank"), 1.0, profile=ml.Custom(f, lambda t: 0.0, lambda t: 0.0),
+                 name="motor")
+    return m
+
+
+def _breaks_after(t_fail, value=1.0):
+    def f(t):
+        if t > t_fail:
+            raise ZeroDivisionError("the user's bug")
+        return value
+    return f
+
+
+def test_a_raising_profile_names_the_torque_and_the_time_and_keeps_the_steps_before():
+    with pytest.raises(ml.ProfileError) as err:
+        ml.simulate(_with_torque_profile(_breaks_after(0.0075)), **RUN)
+    e = err.value
+    assert "torque 'motor'" in str(e) and "ZeroDivisionError" in str(e) and "t=0.008" in str(e)
+    assert isinstance(e.__cause__, ZeroDivisionError)
+    assert e.step == 8 and e.time == pytest.approx(0.008)
+    assert e.result.status == "failed" and e.result.n_t == 8  # times 0 .. 0.007
+    ref = ml.simulate(_with_torque_profile(lambda t: 1.0), **RUN)
+    np.testing.assert_array_equal(e.result.q, ref.q[:8])
+
+
+def test_a_nan_from_a_profile_is_named():
+    def f(t):
+        return np.nan if t > 0.0045 else 1.0
+    with pytest.raises(ml.ProfileError, match=r"torque 'motor' gave a NaN or Inf.*t=0.005"):
+        ml.simulate(_with_torque_profile(f), **RUN)
+
+
+def test_a_profile_failing_at_the_start_fails_before_any_step():
+    """(Set after add_force, which already refuses a profile that fails at t = 0.)"""
+    m = flexible_mechanism()
+    m.forces[0].profile = ml.Custom(lambda t: 1.0 / 0.0 if t >= 0 else 0.0)
+    with pytest.raises(ml.ProfileError, match="force 'F' raised ZeroDivisionError.*at t=0") as err:
+        ml.simulate(m, **RUN)
+    assert err.value.step == 0 and err.value.result is None  # no run started
