@@ -16,6 +16,7 @@ from .errors import (
     NonFiniteError,
     ProfileError,
     ResourceError,
+    ResponseError,
     SensitivityError,
     SingularMatrixError,
     SolverError,
@@ -51,8 +52,8 @@ def __getattr__(name: str):
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
     "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Profile",
-    "ProfileError", "Ramp", "ResourceError", "Result", "RigidBody", "SensitivityError",
-    "SensitivityResult", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
-    "State", "System", "airfoil", "compile_model", "io", "morphing", "plots", "responses",
-    "sensitivities", "simulate", "static", "studies", "warmup", "__version__",
+    "ProfileError", "Ramp", "ResourceError", "ResponseError", "Result", "RigidBody",
+    "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
+    "SmoothStep", "SolverError", "State", "System", "airfoil", "compile_model", "io", "morphing",
+    "plots", "responses", "sensitivities", "simulate", "static", "studies", "warmup", "__version__",
 ]

@@ -16,6 +16,18 @@ class SensitivityError(MorphlabError, ValueError):
     used by ``build``, response not complex-safe, topology changing with a design variable)."""
 
 
+class ResponseError(SensitivityError):
+    """A response raised, or returned something other than a finite real scalar. The analysis
+    is kept: ``sensitivity`` holds a SensitivityResult with the responses evaluated before it
+    (its ``derivative`` works for a corrected response), and the response's own exception is
+    the ``__cause__``."""
+
+    def __init__(self, message, *, response=None, sensitivity=None):
+        super().__init__(message)
+        self.response = response
+        self.sensitivity = sensitivity
+
+
 class FormatError(MorphlabError, ValueError):
     """A file cannot be written or read in the morphlab file format (not a morphlab file, a
     newer format version, an entry that has no file representation, metadata that is not

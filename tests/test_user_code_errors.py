@@ -52,3 +52,58 @@ def test_a_profile_failing_at_the_start_fails_before_any_step():
     with pytest.raises(ml.ProfileError, match="force 'F' raised ZeroDivisionError.*at t=0") as err:
         ml.simulate(m, **RUN)
     assert err.value.step == 0 and err.value.result is None  # no run started
+
+
+# ------------------------------------------------------------------- sensitivities
+def _pendulum(p):
+    from test_sensitivity_direct import pendulum
+    return pendulum(p)
+
+
+P0 = {"t": 1.5, "E": 70000.0, "rho": 2.7e-9, "M": 40.0, "x_pivot": 5.0, "m_tip": 2e-4}
+TIP = ml.responses.point_displacement("beam", (60.0, -45.0), 1)
+
+
+def test_a_raising_response_is_named_and_the_analysis_kept():
+    calls = {"n": 0}
+
+    def fragile(r):
+        calls["n"] += 1
+        if np.iscomplexobj(r.q):
+            raise ValueError("no complex here")
+        return r.q[-1, 0]
+
+    with pytest.raises(ml.ResponseError, match="'fragile' raised ValueError.*perturbed") as err:
+        ml.sensitivities(_pendulum, P0, {"tip": TIP, "fragile": fragile}, t_end=0.01, dt=1e-3)
+    e = err.value
+    assert e.response == "fragile" and isinstance(e.__cause__, ValueError)
+    kept = e.sensitivity
+    assert "tip" in kept.gradients and kept.result.status == "ok"
+    d = kept.derivative(lambda r: r.q[-1])  # the analysis is usable
+    assert d.shape == (kept.result.system.n_dof, len(P0)) and np.all(np.isfinite(d))
+
+
+@pytest.mark.parametrize("bad", [None, "a string", np.nan, np.array([1.0, 2.0])])
+@pytest.mark.parametrize("method", ["direct", "forward-difference"])
+def test_a_response_that_is_not_a_finite_scalar_is_named(bad, method):
+    with pytest.raises(ml.ResponseError, match="'odd' must return a finite real scalar"):
+        ml.sensitivities(_pendulum, P0, {"odd": lambda r: bad}, method=method,
+                         variables=["t"], t_end=0.005, dt=1e-3)
+
+
+@pytest.mark.parametrize("value", [True, "2.0", None, [2.0], float("nan"), 1 + 2j])
+def test_design_values_are_real_finite_numbers(value):
+    with pytest.raises(ml.SensitivityError, match="'t' must be a finite real number"):
+        ml.sensitivities(_pendulum, dict(P0, t=value), {"tip": TIP}, t_end=0.005, dt=1e-3)
+
+
+def test_a_build_that_cannot_take_a_complex_step_is_named():
+    import math
+
+    def build(p):
+        return _pendulum(dict(p, t=math.sqrt(p["t"] ** 2)))  # math.sqrt refuses complex
+
+    with pytest.raises(ml.SensitivityError, match=r"build\(p\) raised TypeError.*'t' perturbed"
+                       ) as err:
+        ml.sensitivities(build, P0, {"tip": TIP}, variables=["t"], t_end=0.005, dt=1e-3)
+    assert isinstance(err.value.__cause__, TypeError)

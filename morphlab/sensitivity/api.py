@@ -43,6 +43,7 @@ variable: the reference, no truncation error), ``"forward-difference"`` (n_x + 1
 
 from __future__ import annotations
 
+import numbers
 import time as _time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -50,11 +51,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import compile_model
-from ..errors import SensitivityError
+from ..errors import MorphlabError, ResponseError, SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
 from .histories import HISTORIES
-from .perturb import CS_STEP, complex_systems, relative_steps
+from .perturb import CS_STEP, call_build, complex_systems, relative_steps
 from .strategies import Auto, Setup, resolve
 
 
@@ -145,6 +146,11 @@ def _check_response(name, value_c, value0):
 def _check_inputs(p0, names, responses, store) -> None:
     if not isinstance(p0, Mapping) or not p0:
         raise SensitivityError("p0 must be a non-empty dict of design variables")
+    for k, v in p0.items():
+        if (isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real)
+                or not np.isfinite(v)):
+            raise SensitivityError(f"design variable {k!r} must be a finite real number, got "
+                                   f"{_show(v)}")
     unknown = [v for v in names if v not in p0]
     if unknown:
         raise SensitivityError(f"design variables {unknown} are not in p0 (known: {list(p0)})")
@@ -213,10 +219,10 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     names = list(p0) if variables is None else list(variables)
     _check_inputs(p0, names, responses, store)
     settings = Settings.of(settings, **options)
-    p0 = {k: float(np.real(v)) for k, v in p0.items()}
+    p0 = {k: float(v) for k, v in p0.items()}
 
     t_start = _time.perf_counter()
-    sys0 = compile_model(build(dict(p0)))
+    sys0 = compile_model(call_build(build, p0, "at the nominal design"))
     csys = complex_systems(build, p0, names, sys0, settings.t_end)
     steps = relative_steps(p0, names, getattr(strategy, "step", step))
     setup = Setup(sys0, settings, build, p0, names, csys, dict(responses), store, progress,
@@ -228,36 +234,64 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     run.timing["setup"] = t_setup
 
     t_resp = _time.perf_counter()
-    values, gradients = _differentiate(strategy, responses, run, names, steps)
+    out = SensitivityResult(method=strategy.name, variables=names, result=run.result, values={},
+                            gradients={}, state=run.state, timing=run.timing, stats=run.stats,
+                            _perturbed=run.perturbed, _steps=steps, _strategy=strategy)
+    out.values, out.gradients = _differentiate(strategy, responses, run, names, steps, out)
     run.timing["responses"] = _time.perf_counter() - t_resp
     run.timing["total"] = _time.perf_counter() - t_start
-    return SensitivityResult(method=strategy.name, variables=names, result=run.result,
-                             values=values, gradients=gradients, state=run.state,
-                             timing=run.timing, stats=run.stats, _perturbed=run.perturbed,
-                             _steps=steps, _strategy=strategy)
+    return out
 
 
-def _differentiate(strategy, responses, run, names, steps) -> tuple[dict, dict]:
+def _differentiate(strategy, responses, run, names, steps, partial) -> tuple[dict, dict]:
     """Values of the responses on the primal result and their derivatives over the perturbed
-    results (complex step over a complex result, or differences)."""
+    results (complex step over a complex result, or differences). A response that raises or
+    returns something other than a finite real scalar raises :class:`ResponseError` with the
+    analysis so far (``partial``, a SensitivityResult filled as the responses are)."""
     if run.gradients is not None:  # the strategy differentiated the responses itself
         return dict(run.values), {r: {v: float(g[i]) for i, v in enumerate(names)}
                                   for r, g in run.gradients.items()}
-    values: dict = {}
-    gradients: dict = {}
+    values, gradients = partial.values, partial.gradients
     for rname, fn in responses.items():
-        val0 = fn(run.result)
-        if np.ndim(val0) != 0:
-            raise SensitivityError(f"response {rname!r} must return a scalar, got shape "
-                                   f"{np.shape(val0)}")
+        val0 = _evaluate(rname, fn, run.result, "the primal result", partial)
         values[rname] = float(np.real(val0))
-        gradients[rname] = {}
+        grad = {}
         for v, pert in zip(names, run.perturbed):
             if strategy.complex_results:
-                vc = fn(pert)
+                vc = _evaluate(rname, fn, pert, f"the perturbed result of {v!r}", partial)
                 _check_response(rname, vc, values[rname])
-                gradients[rname][v] = float(np.imag(vc) / CS_STEP)
+                grad[v] = float(np.imag(vc) / CS_STEP)
             else:
-                gradients[rname][v] = float(np.real(strategy.column(fn, run.result, pert,
-                                                                    steps[v])))
+                col = _evaluate(rname, lambda r, fn=fn, pert=pert, v=v: strategy.column(
+                    fn, r, pert, steps[v]), run.result, f"the differences of {v!r}", partial)
+                grad[v] = float(np.real(col))
+        gradients[rname] = grad
     return values, gradients
+
+
+def _evaluate(name, fn, result, where, partial):
+    """``fn(result)``, a finite scalar, or a :class:`ResponseError` naming the response."""
+    try:
+        out = fn(result)
+    except MorphlabError as exc:
+        raise ResponseError(f"response {name!r} failed on {where}: {exc}", response=name,
+                            sensitivity=partial) from exc
+    except Exception as exc:  # the user's function: keep the analysis, name the response
+        raise ResponseError(f"response {name!r} raised {type(exc).__name__}: {exc} (on "
+                            f"{where}; the analysis is kept in error.sensitivity)",
+                            response=name, sensitivity=partial) from exc
+    try:
+        arr = np.asarray(out)
+        ok = arr.dtype.kind in "iufc" and arr.ndim == 0 and np.isfinite(arr)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ResponseError(f"response {name!r} must return a finite real scalar, got "
+                            f"{_show(out)} (on {where}; the analysis is kept in "
+                            "error.sensitivity)", response=name, sensitivity=partial)
+    return out
+
+
+def _show(value, limit=60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -17,8 +17,9 @@ import numpy as np
 
 from ..compile import System, compile_model, kernel_arrays, time_table
 from ..compile.system import SystemArrays, TimeTable
-from ..errors import SensitivityError
+from ..errors import MorphlabError, SensitivityError
 from ..kernels.system import DESIGN_FIELDS, DesignArrays
+from ..model.model import Model
 
 #: The complex step (Martins, Sturdza & Alonso 2003): exact to round-off for ``h`` this small.
 CS_STEP = 1e-30
@@ -72,9 +73,27 @@ def compile_perturbed(build: Callable, p0: dict, name: str, delta, sys0: System)
     p = dict(p0)
     p[name] = p0[name] + delta
     dtype = np.complex128 if isinstance(delta, complex) else np.float64
-    sys_p = compile_model(build(p), dtype=dtype, like=sys0)
+    what = f"with {name!r} perturbed by {delta!r}"
+    sys_p = compile_model(call_build(build, p, what), dtype=dtype, like=sys0)
     check_same_layout(sys0, sys_p, name)
     return sys_p
+
+
+def call_build(build: Callable, p: dict, what: str):
+    """``build(p)``; a user's exception becomes a :class:`SensitivityError` saying for which
+    design (its cause the exception), and a non-Model result is refused."""
+    try:
+        model = build(dict(p))
+    except MorphlabError:
+        raise
+    except Exception as exc:
+        raise SensitivityError(f"build(p) raised {type(exc).__name__}: {exc} ({what}; a "
+                               "complex-step perturbation needs build to accept complex "
+                               "values)") from exc
+    if not isinstance(model, Model):
+        raise SensitivityError(f"build(p) must return a morphlab Model, got "
+                               f"{type(model).__name__} ({what})")
+    return model
 
 
 def complex_systems(build: Callable, p0: dict, names: list[str], sys0: System,
