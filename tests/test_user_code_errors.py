@@ -107,3 +107,17 @@ def test_a_build_that_cannot_take_a_complex_step_is_named():
                        ) as err:
         ml.sensitivities(build, P0, {"tip": TIP}, variables=["t"], t_end=0.005, dt=1e-3)
     assert isinstance(err.value.__cause__, TypeError)
+
+
+def test_a_variable_that_moves_a_load_to_another_node_is_refused():
+    """Same counts and sparsity pattern (the beam's nodes all couple to its frame), but the
+    force acts on another node under the perturbation: refused, naming the force."""
+    def build(p):
+        m = _pendulum(dict(P0, t=p["t"]))
+        node = 3 if np.imag(p["t"]) != 0.0 else 2  # a bug: the node depends on the design
+        m.add_force("beam", at=tuple(np.real(m.body("beam").nodes[node])), force=(0.0, -1.0),
+                    name="Fk")
+        return m
+
+    with pytest.raises(ml.SensitivityError, match="moves force 'Fk'"):
+        ml.sensitivities(build, {"t": 1.5}, {"tip": TIP}, t_end=0.005, dt=1e-3)

@@ -34,14 +34,35 @@ def relative_steps(p0: dict, names: list[str], step: float) -> dict[str, float]:
     return {v: step * (abs(p0[v]) if p0[v] != 0.0 else 1.0) for v in names}
 
 
+# what a design variable must not change, item by item: (array, the items it describes, the
+# System list naming them)
+_TOPOLOGY = (("load_dofs", "force", "load_names"), ("torque_dofs", "torque", "torque_names"),
+             ("con_dofs", "constraint row", "con_names"), ("con_kind", "constraint row",
+                                                           "con_names"),
+             ("elem_dofs", "element", None), ("body_ref", "body", None))
+
+
 def check_same_layout(a: System, b: System, name: str) -> None:
-    """Raise :class:`SensitivityError` if ``b`` (a perturbed design) has another structure."""
+    """Raise :class:`SensitivityError` if ``b`` (a perturbed design) has another structure
+    than ``a``: other DOFs, constraints or sparsity, or any load, torque, joint row, element
+    or body acting on other DOFs (a node another, a body another) — the derivative of a
+    change of topology does not exist."""
     same = (a.n_dof == b.n_dof and a.n_con == b.n_con and a.nnz == b.nnz
             and np.array_equal(a.indices, b.indices) and np.array_equal(a.indptr, b.indptr))
     if not same:
         raise SensitivityError(
             f"changing design variable {name!r} changes the model's structure (DOFs, "
             "constraints or sparsity pattern); build(p) must keep the topology fixed")
+    for field, kind, names in _TOPOLOGY:
+        x, y = getattr(a, field), getattr(b, field)
+        if x.shape != y.shape or not np.array_equal(x, y):
+            rows = np.flatnonzero(np.any((x != y).reshape(x.shape[0], -1), axis=1)) \
+                if x.shape == y.shape else [0]
+            i = int(rows[0])
+            item = f"{kind} {getattr(a, names)[i]!r}" if names else f"{kind} {i}"
+            raise SensitivityError(
+                f"changing design variable {name!r} moves {item} to other coordinates (another "
+                "node or body): build(p) must keep every load, joint and element where it is")
 
 
 def uses_variable(sys_p: System, sys0: System, t_end: float) -> bool:
