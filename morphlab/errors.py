@@ -76,6 +76,21 @@ class ProfileError(SolverError):
     user's exception is the ``__cause__``)."""
 
 
+class AccuracyError(SolverError):
+    """A finished run failed one of its own checks (``simulate(..., checks="raise")``):
+    constraint drift, unbounded growth, implausible deformation or stress. ``result`` holds the
+    run, with its ``findings``."""
+
+
+class MorphlabWarning(UserWarning):
+    """Base class of the warnings morphlab emits."""
+
+
+class AccuracyWarning(MorphlabWarning):
+    """A finished run failed one of its own checks (see :class:`AccuracyError`); the run's
+    status is ``"warning"`` and ``result.findings`` lists what and where."""
+
+
 class Interrupted(KeyboardInterrupt):
     """A run stopped by an interrupt (Ctrl-C / SIGINT, or a KeyboardInterrupt raised by an
     observer or a progress callback). A :class:`KeyboardInterrupt`, so code that stops on

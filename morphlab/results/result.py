@@ -35,7 +35,10 @@ class Result:
     constraint_violation, velocity_violation : (n_t,)
         ``max |Phi|`` and ``max |Phi'|`` after each step.
     status, message : str
-        ``"ok"`` or ``"failed"`` and a readable sentence.
+        ``"ok"``, ``"warning"`` (a check of the finished run failed: ``findings``),
+        ``"failed"`` or ``"interrupted"``, and a readable sentence.
+    findings : list of Finding
+        What the run's own checks found doubtful (:mod:`morphlab.results.checks`).
     """
 
     system: System
@@ -55,6 +58,7 @@ class Result:
     scale: float = 1.0
     step_reductions: list = field(default_factory=list)
     energy_cache: dict | None = field(default=None, repr=False, compare=False)
+    findings: list = field(default_factory=list)
     newton_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
     newton_log_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64),
                                            repr=False)

@@ -71,6 +71,13 @@ class Settings:
     compiled_newton : bool
         Run the Newton loop of a step in one compiled call once the factorization has settled
         (the same iterates as the loop from Python, which remains for ``False``).
+    checks : {"warn", "raise", "off"}
+        What a finished run does when one of its own checks fails (constraint drift beyond
+        ``constraint_tol``, unbounded growth, implausible deformation or stress:
+        :mod:`morphlab.results.checks`): status ``"warning"`` and an AccuracyWarning, an
+        AccuracyError, or nothing.
+    constraint_tol : float
+        Largest position-level constraint violation accepted, relative to the model size.
     """
 
     t_end: float
@@ -86,6 +93,8 @@ class Settings:
     newton: str = "full"
     dense_max: int = DENSE_MAX
     compiled_newton: bool = True
+    checks: str = "warn"
+    constraint_tol: float = 1e-3
 
     @classmethod
     def of(cls, settings: Settings | None = None, **options) -> Settings:
@@ -131,12 +140,16 @@ class Settings:
             if not (_is_real(v) and np.isfinite(v) and v >= 0):
                 raise ModelError(f"{name} must be a finite number >= 0, got {v!r}")
         for name, valid in (("newton", ("full", "modified")), ("scheme", SCHEMES),
-                            ("constraint_form", ("paper", "endpoint"))):
+                            ("constraint_form", ("paper", "endpoint")),
+                            ("checks", ("warn", "raise", "off"))):
             if getattr(self, name) not in valid:
                 raise ModelError(f"{name} must be one of {', '.join(map(repr, valid))}, got "
                                  f"{getattr(self, name)!r}")
         if not (_is_int(self.dense_max) and self.dense_max >= 0):
             raise ModelError(f"dense_max must be an integer >= 0, got {self.dense_max!r}")
+        if not (_is_real(self.constraint_tol) and 0 < self.constraint_tol < 1):
+            raise ModelError(f"constraint_tol must be a number in (0, 1), got "
+                             f"{self.constraint_tol!r}")
         if not isinstance(self.compiled_newton, (bool, np.bool_)):
             raise ModelError(f"compiled_newton must be True or False, got "
                              f"{self.compiled_newton!r}")

@@ -20,6 +20,7 @@ from ..compile import System, compile_model
 from ..compile.system import TimeTable, table_at, time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
 from ..model.model import Model
+from ..results.checks import assess, report_findings
 from ..results.result import Result
 from .cache import announce_compilation
 from .linalg import Factor
@@ -122,6 +123,10 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                     report(n, n_steps, float(t[n]))
         except SolverError as err:
             err.result = make_result("failed", str(err))
+            err.result.findings = assess(err.result, settings.constraint_tol)
+            if err.result.findings:  # what the run showed before it failed
+                err.args = (f"{err}; before it: " + "; ".join(
+                    f.message for f in err.result.findings),)
             raise
         except KeyboardInterrupt as err:
             k = hist.n_done
@@ -132,7 +137,9 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     if failure is not None:
         failure.result = make_result("failed", str(failure))
         raise failure
-    return make_result("ok", f"completed {n_steps} steps")
+    result = make_result("ok", f"completed {n_steps} steps")
+    report_findings(result, assess(result, settings.constraint_tol), settings.checks)
+    return result
 
 
 class _Interrupts:

@@ -1,0 +1,165 @@
+"""The checks a finished run reads off its own histories, so that a doubtful result never
+reads "ok".
+
+* **constraint drift**: the largest position-level violation of the joints, against
+  ``constraint_tol`` times the model size (the acceleration-level constraints drift; the
+  stabilization keeps the drift at the Newton tolerance in a sound run);
+* **unbounded growth**: a beam's deformation that grows by orders of magnitude towards the end
+  of the run (a divergence, e.g. a single linear floating frame spun above its first bending
+  frequency);
+* **implausible units**: a beam deformed by a large part of its own size, or stresses above
+  the material's Young's modulus (a modulus in Pa with lengths in mm, say).
+
+Each finding names the check, where (joint, beam) and when; the run's status becomes
+``"warning"``, an :class:`~morphlab.errors.AccuracyWarning` is emitted, or, with
+``checks="raise"``, an :class:`~morphlab.errors.AccuracyError` carries the result.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import AccuracyError, AccuracyWarning, ModelError
+
+#: A beam deformed by more than this part of its size is reported (the linear floating frame is
+#: meant for small deformations relative to it).
+DEFORMATION_TOL = 0.3
+#: Growth of a beam's deformation between the first 80 % of a run and its last 20 % above
+#: which the run is reported as diverging (and the deformation must exceed 1e-3 of the size).
+GROWTH_TOL = 1e3
+CHECK_MODES = ("warn", "raise", "off")
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One doubtful aspect of a result: which check, where, its value against its limit, and
+    a sentence for the user."""
+
+    check: str
+    where: str
+    value: float
+    limit: float
+    message: str
+
+
+def assess(result, constraint_tol: float) -> list[Finding]:
+    """The findings of every check on ``result`` (empty: nothing doubtful)."""
+    if result.n_t == 0:
+        return []
+    return [f for f in (_drift(result, constraint_tol), *_beams(result)) if f is not None]
+
+
+def _drift(result, tol: float) -> Finding | None:
+    system = result.system
+    if system.n_con == 0 or not result.constraint_violation.size:
+        return None
+    size = system.length_scale
+    k = int(np.argmax(result.constraint_violation))
+    worst = float(result.constraint_violation[k])
+    if worst <= tol * size:
+        return None
+    where = _worst_row(result, k)
+    return Finding("constraint drift", where, worst, tol * size,
+                   f"joint {where} is violated by {worst:.3g} at t={result.t[k]:.6g} "
+                   f"({worst / size:.2g} of the model size, tolerance {tol:.1g}): the result "
+                   "does not satisfy its joints; use a smaller dt or max_halvings less, or check "
+                   "the stabilization")
+
+
+def _worst_row(result, k: int) -> str:
+    """The joint of the row violated most at time index ``k`` (its name, or '?')."""
+    if result.q is None:
+        return "?"
+    system = result.system
+    phi, _ = system.constraint_violation(np.real(result.q[k]), np.zeros(system.n_dof),
+                                         float(result.t[k]))
+    i = int(np.argmax(np.abs(np.real(phi))))
+    return repr(system.con_joint[i])
+
+
+def _beams(result):
+    """Growth and plausibility of every beam (needs the history of q), computed over chunks
+    of times so that a long run of a large model needs no copy of its histories."""
+    if result.q is None:
+        return
+    system = result.system
+    for name, info in system.bodies.items():
+        if info.kind != "beam":
+            continue
+        body = system.model.body(name)
+        amp, sigma = _extremes(result, info)
+        yield _growth(result, name, amp, body.size)
+        yield _deformation(result, name, amp, body.size)
+        yield _stress(name, sigma, body)
+
+
+def _extremes(result, info, chunk: int = 256) -> tuple[np.ndarray, float]:
+    """Largest node deflection of a beam in its frame at every time (n_t,) and the largest
+    stress magnitude of the run."""
+    system = result.system
+    nd = info.node_dofs[:, :2]
+    ed = system.elem_dofs[info.elements]
+    B = np.real(system.elem_B[info.elements]).reshape(ed.shape[0], 4, 6)
+    amp = np.zeros(result.n_t)
+    sigma = 0.0
+    for k0 in range(0, result.n_t, chunk):
+        q = np.real(result.q[k0:k0 + chunk])
+        w = np.where(nd >= 0, q[:, np.maximum(nd, 0)], 0.0)  # (k, n_nodes, 2)
+        amp[k0:k0 + chunk] = np.sqrt(np.max(np.sum(w * w, axis=2), axis=1))
+        d = np.where(ed >= 0, q[:, np.maximum(ed, 0)], 0.0)  # (k, n_elem, 6)
+        sigma = max(sigma, float(np.max(np.abs(np.einsum("enj,kej->ken", B, d)), initial=0.0)))
+    return amp, sigma
+
+
+def _growth(result, name, amp, size) -> Finding | None:
+    n = amp.size
+    if n < 10:
+        return None
+    early, late = float(np.max(amp[: int(0.8 * n)])), float(np.max(amp[int(0.8 * n):]))
+    if late <= 1e-3 * size or late <= GROWTH_TOL * max(early, 1e-300):
+        return None
+    return Finding("unbounded growth", repr(name), late / max(early, 1e-300), GROWTH_TOL,
+                   f"the deformation of beam {name!r} grows from {early:.3g} to {late:.3g} in "
+                   "the last fifth of the run: the solution diverges (a single floating frame "
+                   "spun or loaded beyond its validity? try add_beam(..., frames=...))")
+
+
+def _deformation(result, name, amp, size) -> Finding | None:
+    k = int(np.argmax(amp))
+    if amp[k] <= DEFORMATION_TOL * size:
+        return None
+    return Finding("implausible deformation", repr(name), float(amp[k] / size),
+                   DEFORMATION_TOL,
+                   f"beam {name!r} is deformed by {amp[k]:.3g} ({amp[k] / size:.0%} of its size "
+                   f"{size:.3g}) at t={result.t[k]:.6g} relative to its frame: check the units "
+                   "(E, density and lengths consistent?) and the loads")
+
+
+def _stress(name, sigma, body) -> Finding | None:
+    E = float(np.min(np.real(np.asarray(body.E))))
+    if sigma <= E:
+        return None
+    return Finding("implausible stress", repr(name), float(sigma / E), 1.0,
+                   f"the stress in beam {name!r} reaches {sigma:.3g}, above its Young's "
+                   f"modulus {E:.3g}: check the units (E in MPa with lengths in mm, say)")
+
+
+def report_findings(result, findings: list[Finding], mode: str) -> None:
+    """Apply the findings to ``result``: status ``"warning"`` and the findings listed, and an
+    :class:`AccuracyWarning` each (``mode="warn"``) or an :class:`AccuracyError`
+    (``"raise"``)."""
+    if mode not in CHECK_MODES:
+        raise ModelError(f"checks must be one of {CHECK_MODES}, got {mode!r}")
+    result.findings = list(findings)
+    if not findings or mode == "off":
+        return
+    result.status = "warning"
+    result.message += "; " + "; ".join(f"{f.check} ({f.where})" for f in findings)
+    if mode == "raise":
+        raise AccuracyError("; ".join(f.message for f in findings), result=result,
+                            time=float(result.t[-1]), step=result.n_t - 1)
+    for f in findings:
+        warnings.warn(AccuracyWarning(f.message), stacklevel=4)
