@@ -117,6 +117,14 @@ def _explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0,
                        ta_old, scale, b0, b1, n_dof, R):
     """Overwrite ``R`` with the step residual over ``parts`` (both levels when ``has_old``)."""
     R[:] = 0.0
+    add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0,
+                          w_old, ta_old, scale, b0, b1, n_dof, R)
+
+
+@njit(cache=True)
+def add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0,
+                          w_old, ta_old, scale, b0, b1, n_dof, R):
+    """Add the step residual over ``parts`` (both levels when ``has_old``) to ``R``."""
     if has_old:
         add_residual_parts(S, parts, q0, v0, a0, l0, w_old[0], w_old[1], w_old[2], w_old[3],
                            w_old[4], scale, b0, b1, ta_old[0], ta_old[1], ta_old[2], ta_old[3],
