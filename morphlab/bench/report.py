@@ -66,17 +66,17 @@ def table(results: dict) -> str:
                       f"direct {f['direct_per_step']:.2f}", ""]
     v = results["cases"].get("variables")
     if v:
-        lines += [f"### Growth with design variables ({v.get('n_elements', 30)}-element skin)",
-                  "", "| n_x | primal [s] | direct [s] | direct / primal | FD / primal "
-                  "(n_x+1) |", "|---|---|---|---|---|"]
+        lines += [f"### Cost against the number of design variables ({v['n_elements']}-element "
+                  f"skin, {len(v['responses'])} responses)", "",
+                  "| n_x | primal [s] | direct / primal | adjoint / primal | FD / primal |",
+                  "|---|---|---|---|---|"]
         for r in v["rows"]:
-            lines.append(f"| {r['n_x']} | {r['primal']['median']:.4f} | "
-                         f"{r['direct']['median']:.4f} | {r['direct_over_primal']:.2f} | "
-                         f"{r['finite_difference_over_primal_estimate']} |")
-        if "fit" in v:
-            lines += ["", f"straight-line fit: direct / primal = {v['fit']['intercept']:.2f} + "
-                          f"{v['fit']['per_variable']:.3f} n_x"]
-        lines.append("")
+            o = r["over_primal"]
+            lines.append(f"| {r['n_x']} | {r['seconds']['primal']:.4f} | {o['direct']:.2f} | "
+                         f"{o['adjoint']:.2f} | {o['finite_difference']:.2f} |")
+        c = v.get("crossover")
+        lines += ["", "adjoint faster than direct above n_x = "
+                  + (f"{c:.1f}" if c is not None else "(no crossing in the range measured)"), ""]
     p = results["cases"].get("profile")
     if p:
         lines += ["### Where the time goes (direct run, cProfile)", "",
