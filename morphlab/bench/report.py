@@ -77,6 +77,14 @@ def table(results: dict) -> str:
         c = v.get("crossover")
         lines += ["", "adjoint faster than direct above n_x = "
                   + (f"{c:.1f}" if c is not None else "(no crossing in the range measured)"), ""]
+    mem = results["cases"].get("memory")
+    if mem:
+        lines += ["### Peak memory of the adjoint on a long run", "",
+                  "| elements | DOFs | steps | budget [MiB] | primal [s] | adjoint [s] | "
+                  "segment steps | peak memory [MiB] |", "|---|---|---|---|---|---|---|---|",
+                  f"| {mem['n_elements']} | {mem['n_dof']} | {mem['steps']} | "
+                  f"{mem['budget_MiB']} | {mem['primal_s']:.1f} | {mem['adjoint_s']:.1f} | "
+                  f"{mem['segment_steps'] or 'all kept'} | {mem['peak_memory_MiB']:.0f} |", ""]
     p = results["cases"].get("profile")
     if p:
         lines += ["### Where the time goes (direct run, cProfile)", "",

@@ -15,6 +15,8 @@ shared and noisy). Cases:
                of elements and the bell-crank points), three responses: primal, direct,
                adjoint and finite differences against n_x, and the crossover
                (:mod:`morphlab.bench.variables`).
+``memory``     peak memory and time of the adjoint, 3000-element skin over 10 000 steps
+               (:mod:`morphlab.bench.memory`).
 ``profile``    where the time of the morphing direct run goes (cProfile, grouped).
 ``floor``      the compiled kernels of one morphing step timed alone, and the least
                direct / primal they allow (no Python, set-up or responses counted).
@@ -50,6 +52,7 @@ from ..solve.settings import Settings
 from ..solve.superlu import PIVOT_THRESHOLD
 from ..solve.timeloop import integrate
 from ..studies.timing import interleaved_times
+from .memory import case_memory
 from .report import table
 from .variables import case_variables
 
@@ -373,7 +376,8 @@ def case_exudyn(repeats: int, quick: bool) -> dict:
 
 
 CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
-         "variables": case_variables, "profile": case_profile, "floor": case_floor,
+         "variables": case_variables, "memory": case_memory, "profile": case_profile,
+         "floor": case_floor,
          "exudyn": case_exudyn}
 
 
