@@ -6,7 +6,8 @@ with respect to the five variables of the paper by the adjoint, with a budget of
 :data:`BUDGET_MIB` for the states and factorizations it keeps; beyond it the run keeps
 checkpoints and the sweep recomputes segments (:mod:`morphlab.sensitivity.adjoint`). The
 responses read the skin's whole history of coordinates (the KS stress aggregates all steps),
-which the run keeps as well. Each size runs in a fresh process whose peak resident memory is
+which the run keeps as well (the KS stress's gradient is formed over chunks of steps, its
+derivative with respect to each step's coordinates when the sweep reaches it). Each size runs in a fresh process whose peak resident memory is
 read from the operating system; a primal run of the same process is timed beside it.
 """
 
@@ -33,12 +34,14 @@ p0 = dict(mo.DEFAULTS)
 t0 = time.perf_counter()
 res = ml.simulate(build(p0), **settings, store=("q",))
 primal = time.perf_counter() - t0
+n_dof = res.system.n_dof
+del res
 t0 = time.perf_counter()
 s = ml.sensitivities(build, p0, mo.RESPONSES, method=Adjoint(
     memory=budget * 2**20), **settings)
 adjoint = time.perf_counter() - t0
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-print(json.dumps({"n_elements": n_el, "n_dof": res.system.n_dof, "steps": n_steps,
+print(json.dumps({"n_elements": n_el, "n_dof": n_dof, "steps": n_steps,
                   "budget_MiB": budget, "primal_s": primal, "adjoint_s": adjoint,
                   "segment_steps": s.stats.get("segment_steps"),
                   "peak_memory_MiB": peak}))
