@@ -7,8 +7,9 @@ with respect to the five variables of the paper by the adjoint, with a budget of
 checkpoints and the sweep recomputes segments (:mod:`morphlab.sensitivity.adjoint`). The
 responses read the skin's whole history of coordinates (the KS stress aggregates all steps),
 which the run keeps as well (the KS stress's gradient is formed over chunks of steps, its
-derivative with respect to each step's coordinates when the sweep reaches it). Each size runs in a fresh process whose peak resident memory is
-read from the operating system; a primal run of the same process is timed beside it.
+derivative with respect to each step's coordinates when the sweep reaches it). The case runs
+in a fresh process whose peak resident memory is read from the operating system; a primal run
+of the same process is timed beside it.
 """
 
 from __future__ import annotations
