@@ -244,3 +244,47 @@ def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS, settings: dict 
     unc = fosm(sens, std=TOLERANCES, allowables={"ks_max_stress": (None, ALLOWABLE_MPA),
                                                  "joint_clearance": (CLEARANCE_MM, None)})
     return unc, sens
+
+
+def tolerances_monte_carlo(p: dict, n: int, *, seed: int = 0, executor=None,
+                           n_elements: int = le.N_ELEMENTS, settings: dict | None = None):
+    """Monte Carlo check of :func:`tolerances_fosm`: ``n`` designs drawn from independent
+    normal distributions of :data:`TOLERANCES` about ``p``, run through
+    :func:`morphlab.studies.sweep` (a local process pool by default; any executor, e.g. a
+    Dask client's). Returns ``(stats, table)``: per response the sample ``mean`` and ``std``
+    with 95 % confidence intervals (``mean_ci``: normal; ``std_ci``: chi-square), the
+    fraction beyond the allowables, and the :class:`~morphlab.studies.SweepResult`."""
+    from scipy import stats as st
+
+    from ..studies import SimulationTask, monte_carlo, normal, sweep
+
+    designs = monte_carlo({k: normal(p[k], s) for k, s in TOLERANCES.items()}, n, seed=seed)
+    for k, v in p.items():
+        if k not in designs:
+            designs[k] = np.full(n, float(v))
+    task = SimulationTask(_Zoned(n_elements), RESPONSES,
+                          dict(le.SETTINGS if settings is None else settings))
+    table = sweep(task, designs, executor=executor)
+    out = {"n": int(np.sum(table.ok)), "failed": int(np.sum(~table.ok))}
+    for k in RESPONSES:
+        x = table.values[k][table.ok]
+        m, sd, k_n = float(np.mean(x)), float(np.std(x, ddof=1)), x.size
+        half = 1.96 * sd / np.sqrt(k_n)
+        lo, hi = st.chi2.ppf([0.975, 0.025], k_n - 1)
+        out[k] = {"mean": m, "std": sd, "mean_ci": (m - half, m + half),
+                  "std_ci": (sd * np.sqrt((k_n - 1) / lo), sd * np.sqrt((k_n - 1) / hi))}
+    out["ks_max_stress"]["beyond_allowable"] = float(np.mean(
+        table.values["ks_max_stress"][table.ok] > ALLOWABLE_MPA))
+    out["joint_clearance"]["beyond_allowable"] = float(np.mean(
+        table.values["joint_clearance"][table.ok] < CLEARANCE_MM))
+    return out, table
+
+
+class _Zoned:
+    """``build`` with a fixed mesh, picklable for process pools and Dask workers."""
+
+    def __init__(self, n_elements: int):
+        self.n_elements = n_elements
+
+    def __call__(self, p: dict) -> Model:
+        return build(p, n_elements=self.n_elements)

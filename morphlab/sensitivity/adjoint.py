@@ -49,13 +49,16 @@ def _state_bytes(st) -> int:
 
 class _Recorder:
     """Forward observer: keeps every converged step — ``(n, state, factorization, last Newton
-    correction, coefficients)`` — while they fit ``budget`` bytes. Beyond it the run keeps
-    only checkpoints, the state after every ``K``-th step (``K`` chosen so that one segment of
-    ``K`` recomputed steps takes half the budget), and the backward sweep recomputes the
-    steps of each segment from its checkpoint (:func:`_segments`)."""
+    correction, coefficients)`` — while they fit ``budget`` bytes. When they would not (known
+    after the first steps from the bytes per step and the number of steps, or found when the
+    kept steps exceed the budget) the run keeps only checkpoints, the state after every
+    ``K``-th step (``K`` chosen so that one segment of ``K`` recomputed steps takes half the
+    budget), and the backward sweep recomputes the steps of each segment from its checkpoint
+    (:func:`_segments`), in compiled blocks whose stacked factors take ~1/8 of the budget."""
 
-    def __init__(self, budget: int):
-        self.budget = budget
+    def __init__(self, budget: int, n_steps: int):
+        self.budget, self.n_steps = budget, n_steps
+        self.per_step = 0.0
         self.steps: list = []
         self.bytes = 0
         self.K: int | None = None
@@ -72,8 +75,12 @@ class _Recorder:
             return
         self.steps.append((info.n, info.state, info.lu, last, info.coef))
         self.bytes += _state_bytes(info.state) + info.lu.nbytes + 500
-        if self.bytes > self.budget:  # from now on: checkpoints
-            self.K = max(1, int(self.budget // (2 * self.bytes / len(self.steps))))
+        self.per_step = self.bytes / len(self.steps)
+        # checkpoints from now on: when the kept steps exceed the budget, or (from the first
+        # steps on) when the whole run would, so that the budget is never filled and dropped
+        projected = info.n > 2 and self.per_step * (self.n_steps + 1) > self.budget
+        if self.bytes > self.budget or projected:
+            self.K = max(1, int(self.budget // (2 * self.per_step)))
             self.checkpoints = {n: st for n, st, *_ in self.steps if n % self.K == 0}
             self.steps = []
 
@@ -145,8 +152,10 @@ class _Sweep:
     responses' own data terms."""
 
     def __init__(self, sys0: System, stp, vjps: list[ResponseVJP], data: PseudoLoadData,
-                 refine: int, refine_tol: float, F, stats: dict):
+                 refine: int, refine_tol: float, F, stats: dict, block_bytes: float = np.inf,
+                 step_bytes: float = 1.0):
         self.sys0, self.stp, self.vjps, self.data, self.F = sys0, stp, vjps, data, F
+        self.block_bytes, self.step_bytes = block_bytes, step_bytes
         self.refine, self.refine_tol, self.stats = refine, refine_tol, stats
         n_dof, n_con, m = sys0.n_dof, sys0.n_con, len(vjps)
         self.bar = {k: np.zeros((w, m)) for k, w in (("q", n_dof), ("v", n_dof),
@@ -166,8 +175,11 @@ class _Sweep:
             if group is None:
                 for j in range(end - 1, start - 1, -1):
                     self.step(steps[j], steps[j - 1][1] if j > 0 else prev)
-            else:
-                self._block(steps, start, end, steps[start - 1][1] if start > 0 else prev)
+            else:  # sub-blocks whose stacked copies of the factors take ~1/8 of the budget
+                size = max(1, int(self.block_bytes // max(self.step_bytes, 1.0)))
+                for j1 in range(end, start, -size):
+                    j0 = max(start, j1 - size)
+                    self._block(steps, j0, j1, steps[j0 - 1][1] if j0 > 0 else prev)
             end = start
 
     def _block(self, steps: list, j0: int, j1: int, prev) -> None:
@@ -289,7 +301,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_syste
     only the histories the responses read. Returns ``(result, values, gradients, timing,
     stats)`` with ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the complex
     systems' variables."""
-    rec = _Recorder(memory)
+    rec = _Recorder(memory, settings.n_steps)
     t0 = _time.perf_counter()
     kept = to_store("auto", responses, sys0, settings)
     res0 = integrate(sys0, settings, observer=rec, progress=progress, store=kept)
@@ -298,7 +310,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_syste
     vjps = [response_vjp(k, responses[k], res0) for k in names]
     stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations,
              "segment_steps": rec.K}
-    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats)
+    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats,
+                   block_bytes=memory / 8, step_bytes=rec.per_step)
     for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
         sweep.segment(steps, prev)
     grad = sweep.grad + _data_terms(vjps, sys0, complex_systems)
