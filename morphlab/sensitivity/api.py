@@ -83,6 +83,8 @@ class SensitivityResult:
         Wall seconds: ``"primal"``, ``"sensitivity"`` (the extra work) and ``"total"``.
     stats : dict
         Factorizations, refinement residuals and other diagnostics.
+    design : dict[str, float]
+        The nominal design ``p0`` the sensitivities were taken at.
     """
 
     method: str
@@ -93,6 +95,7 @@ class SensitivityResult:
     state: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    design: dict = field(default_factory=dict)
     _perturbed: list = field(default_factory=list, repr=False)
     _steps: dict = field(default_factory=dict, repr=False)
     _strategy: object = field(default=None, repr=False)
@@ -236,7 +239,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     t_resp = _time.perf_counter()
     out = SensitivityResult(method=strategy.name, variables=names, result=run.result, values={},
                             gradients={}, state=run.state, timing=run.timing, stats=run.stats,
-                            _perturbed=run.perturbed, _steps=steps, _strategy=strategy)
+                            design=dict(p0), _perturbed=run.perturbed, _steps=steps,
+                            _strategy=strategy)
     out.values, out.gradients = _differentiate(strategy, responses, run, names, steps, out)
     run.timing["responses"] = _time.perf_counter() - t_resp
     run.timing["total"] = _time.perf_counter() - t_start
