@@ -334,6 +334,8 @@ def _result_header(result, w: Writer) -> dict:
         val = getattr(result, f.name)
         if f.name == "newton_history":
             res_meta[f.name] = [[[float(x) for x in pair] for pair in step] for step in val]
+        elif val is None:  # a history the run did not keep (``store``)
+            res_meta[f.name] = None
         elif isinstance(val, np.ndarray) or f.type in ("np.ndarray", np.ndarray):
             w.array(f"result/{f.name}", val)  # converted while the member is written
         else:

@@ -43,6 +43,18 @@ def test_sensitivity_result_round_trip_is_bitwise(sens, tmp_path):
     assert back.table() == sens.table()
 
 
+def test_adjoint_result_without_kept_histories_round_trips(tmp_path):
+    """The adjoint keeps only the positions (v, a, lam are None): saved and loaded as None."""
+    sens = ml.sensitivities(tip_loaded_cantilever, {"t": 2.0, "F": 1.0},
+                            {"ks": ml.responses.ks_max_stress("beam")}, method="adjoint",
+                            t_end=1e-3, dt=5e-4)
+    assert sens.result.v is None
+    mio.save(sens, tmp_path / "adj.npz")
+    back = mio.load(tmp_path / "adj.npz")
+    assert back.gradients == sens.gradients and back.result.v is None
+    assert same_bits(back.result.q, sens.result.q)
+
+
 def test_composite_profiles_round_trip(tmp_path):
     """Sums, products, integrals of library profiles are stored as data and evaluate the same."""
     m = tip_loaded_cantilever({"t": 2.0, "F": 1.0})
