@@ -2,7 +2,7 @@
 
 Stages in data-flow order (import order):
 
-    kernels < errors < model < compile < results < solve < sensitivity < plots, io
+    kernels < errors < model < compile < results < solve < sensitivity < plots, io, archive
             < studies < warmup < morphing < bench, cli
 
 ``results`` comes before ``solve`` because the solver fills a Result. ``bench`` and
@@ -19,7 +19,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 STAGES = ["kernels", "errors", "model", "compile", "results", "solve", "sensitivity",
-          ("plots", "io"), "studies", "warmup", "morphing", ("bench", "cli")]
+          ("plots", "io", "archive"), "studies", "warmup", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
     for name in (stage if isinstance(stage, tuple) else (stage,)):
