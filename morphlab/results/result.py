@@ -15,6 +15,7 @@ from ..errors import ModelError
 from ..kernels.assemble import add_residual
 from ..kernels.joints import load_residual
 from ..model.model import Beam, RigidBody
+from .kinematics import kinematics
 
 
 @dataclass
@@ -58,6 +59,7 @@ class Result:
     scale: float = 1.0
     step_reductions: list = field(default_factory=list)
     energy_cache: dict | None = field(default=None, repr=False, compare=False)
+    kinematics_cache: dict | None = field(default=None, repr=False, compare=False)
     findings: list = field(default_factory=list)
     newton_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
     newton_log_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64),
@@ -87,7 +89,8 @@ class Result:
         return self.q[:, i]
 
     def reference(self, body: str):
-        """``(R (n_t, 2), theta (n_t,))`` of a body's reference frame."""
+        """``(R (n_t, 2), theta (n_t,))`` of a body's reference frame (a beam's first
+        frame)."""
         info = self.system.body(body)
         return self.q[:, info.ref[:2]], self.q[:, info.ref[2]]
 
@@ -112,23 +115,24 @@ class Result:
         one = q.ndim == 1
         q = q[None] if one else q
         info, w = self._nodal(body, q)
-        R, th = q[:, info.ref[:2]], q[:, info.ref[2]]
-        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        Rx, Ry, th = _frames_of_nodes(info, q)
+        c, s = np.cos(th), np.sin(th)
         ux = info.X[None, :, 0] + w[:, :, 0]
         uy = info.X[None, :, 1] + w[:, :, 1]
-        pos = np.stack([R[:, None, 0] + c * ux - s * uy, R[:, None, 1] + s * ux + c * uy],
-                       axis=-1)
+        pos = np.stack([Rx + c * ux - s * uy, Ry + s * ux + c * uy], axis=-1)
         return pos[0] if one else pos
 
     def node_rotations(self, body: str) -> np.ndarray:
         """Absolute rotation ``theta + phi_k`` of every node of a beam relative to its initial
         value, (n_t, n_nodes)."""
         info, w = self._nodal(body, self.q)
-        _, th = self.reference(body)
-        return th[:, None] - info.angle0 + w[:, :, 2]
+        _, _, th = _frames_of_nodes(info, self.q)
+        angle0 = info.angle0 if info.node_angle0 is None else info.node_angle0[None, :]
+        return th - angle0 + w[:, :, 2]
 
     def deformation(self, body: str) -> np.ndarray:
-        """Nodal deformation ``(u, v, phi)`` of a beam in its body frame, (n_t, n_nodes, 3)."""
+        """Nodal deformation ``(u, v, phi)`` of a beam, each node in the frame that holds it
+        (a node shared by two frames: the one that starts there), (n_t, n_nodes, 3)."""
         return self._nodal(body, self.q)[1]
 
     def point_positions(self, body: str, at) -> np.ndarray:
@@ -180,14 +184,35 @@ class Result:
             self.energy_cache = energy(self)
         return self.energy_cache
 
+    @property
+    def kinematics(self) -> dict:
+        """Kinematic accuracy of every beam's floating frames over the run, by beam name
+        (:class:`~morphlab.results.kinematics.BeamKinematics`; computed on first access)."""
+        if self.kinematics_cache is None:
+            self.kinematics_cache = kinematics(self)
+        return self.kinematics_cache
+
     def summary(self) -> str:
-        """One paragraph with the run's statistics."""
+        """One paragraph with the run's statistics and the beams' kinematic accuracy."""
         it = self.newton_iterations[1:]
+        kin = "".join(f"; beam {k!r}: {v.frames} frame(s), element rotation <= "
+                      f"{v.rotation.max():.3g} rad, kinematic error ~{v.estimate:.3g} "
+                      f"({v.relative:.2g} of its length)" for k, v in self.kinematics.items())
         return (f"{self.status}: {self.message}; {self.n_t - 1} steps of {self.settings.h:.3g} s, "
                 f"Newton iterations per step {it.mean() if it.size else 0:.2f} "
                 f"(max {it.max() if it.size else 0}), {self.n_factorizations} factorizations, "
                 f"max |Phi| {self.constraint_violation.max():.3g}, "
-                f"max |Phi'| {self.velocity_violation.max():.3g}, wall {self.wall_time:.3g} s")
+                f"max |Phi'| {self.velocity_violation.max():.3g}, wall {self.wall_time:.3g} s"
+                f"{kin}")
+
+
+def _frames_of_nodes(info, q: np.ndarray):
+    """``(R_x, R_y, theta)`` of the frame holding each node of a beam at the times of ``q``
+    (n_t, n_dof): (n_t, 1) each for a single frame, (n_t, n_nodes) for several."""
+    if info.n_frames == 1:
+        return q[:, info.ref[0], None], q[:, info.ref[1], None], q[:, info.ref[2], None]
+    nr = info.node_ref
+    return q[:, nr[:, 0]], q[:, nr[:, 1]], q[:, nr[:, 2]]
 
 
 def energy(res: Result) -> dict:
