@@ -8,9 +8,9 @@ Formulation: ``docs/theory.md`` §2 (body) and §3 (element).
 
 from __future__ import annotations
 
-import numpy as np
-
 from typing import NamedTuple
+
+import numpy as np
 
 from ..kernels import beam as kbeam
 from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
