@@ -48,7 +48,7 @@ class BeamKinematics:
     stretch : (frames,)
         Largest spurious stretch ``sum l phi^2/2`` of each frame [length].
     geometric : float
-        Largest deflection error of the missing geometric stiffness [length].
+        The geometric-stiffness term at the time of the largest estimate [length].
     estimate : float
         Largest ``sum(stretch) + geometric`` at one time [length].
     length : float
@@ -72,8 +72,8 @@ class BeamKinematics:
         return self.estimate / self.length
 
     def suggested_frames(self, tol: float) -> int:
-        """Frames that bring ``relative`` to ``tol`` by the ``1/k^2`` law (at most one per
-        element)."""
+        """Frames that bring ``relative`` to ``tol`` by the ``1/k^2`` law (may exceed the
+        number of elements: then refine the mesh too)."""
         k = int(np.ceil(self.frames * np.sqrt(max(self.relative / tol, 1.0))))
         return k
 
