@@ -33,13 +33,8 @@ import numpy as np
 
 from ..compile import System
 from ..compile.system import table_at
-from ..kernels.adjoint import adjoint_block
-from ..kernels.direct import (
-    csc_residual_transposed,
-    csc_transposed_product,
-    explicit_block,
-    split_matrices,
-)
+from ..kernels.adjoint import adjoint_block, explicit_adjoint_block
+from ..kernels.direct import csc_residual_transposed, csc_transposed_product, split_matrices
 from ..results.gradients import ResponseVJP, response_vjp, system_data
 from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
@@ -115,20 +110,17 @@ def _segments(rec: _Recorder, settings: Settings, q0, v0):
         yield steps, prev
 
 
-def _explicit(sys0: System, stp, data: PseudoLoadData, step, prev) -> np.ndarray:
-    """``-∂R_n/∂p`` (n, n_x) of ``step = (n, state, ...)`` at its converged state (both
-    levels; ``prev`` the state before it): the explicit part of the direct method's
-    right-hand side."""
-    n, st, _, _, coef = step
-    old = (st.q, st.v, np.zeros(sys0.n_dof), np.zeros(sys0.n_con)) if prev is None else (
-        prev.q, prev.v, prev.a, prev.lam)
-    Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
-    E = np.zeros((1, sys0.n, data.dq0.shape[1]))
-    explicit_block(data.S_nom, data.P, data.parts, Q, V, A, L, coef.arrays.w_new,
-                   coef.old is not None, coef.arrays.w_old, stp.scale, stp.b0, stp.b1,
-                   data.TAB, data.tab0, np.array([max(n - 1, 0)]), np.array([n]), sys0.n_dof,
-                   data.pert, np.zeros((2, sys0.n), dtype=data.dtype), E)
-    return E[0]
+def _design_share(sys0: System, stp, data: PseudoLoadData, Q, V, A, L, coef, k_new, MU,
+                  grad) -> None:
+    """``grad -= sum_j (dR_j/dp)^T MU[j]`` over steps with states ``(Q, V, A, L)[j + 1]``
+    (``[0]`` the state before them), coefficients ``coef`` and time indices ``k_new``
+    (:func:`~morphlab.kernels.adjoint.explicit_adjoint_block`)."""
+    work = np.zeros((2, sys0.n), dtype=data.dtype)
+    explicit_adjoint_block(data.S_nom, data.P, data.parts, data.touched, Q, V, A, L,
+                           coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
+                           stp.scale, stp.b0, stp.b1, data.TAB, data.tab0,
+                           np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, work,
+                           np.ascontiguousarray(MU), grad)
 
 
 def _split(stp, st, w, F, n_dof):
@@ -204,13 +196,7 @@ class _Sweep:
             np.zeros(nnz, dtype=np.complex128), np.zeros(nnz),
             *stacked_arrays([b[2] for b in block]), refine, self.refine, MU, refined)
         self.stats["refinement_residual"] += refined[refine].tolist()
-        E = np.zeros((K, sys0.n, self.grad.shape[0]))
-        explicit_block(self.data.S_nom, self.data.P, self.data.parts, Q, V, A, L,
-                       coef.arrays.w_new, coef.old is not None, coef.arrays.w_old, stp.scale,
-                       stp.b0, stp.b1, self.data.TAB, self.data.tab0,
-                       np.maximum(k_new - 1, 0), k_new, sys0.n_dof, self.data.pert,
-                       np.zeros((2, sys0.n), dtype=self.data.dtype), E)
-        self.grad += np.einsum("jnx,jnm->xm", E, MU)
+        _design_share(sys0, stp, self.data, Q, V, A, L, coef, k_new, MU, self.grad)
         if initial >= 0:
             self.grad += self.data.dq0.T @ bar["q"] + self.data.dv0.T @ bar["v"]
 
@@ -247,7 +233,11 @@ class _Sweep:
             mu = self._refined(mu, zb, D0 + bh2 * Dq + gh * Dv, lu)
         qhb = bar["q"] + _tproduct(sys0, Dq, mu, n_dof)
         vhb = bar["v"] + _tproduct(sys0, Dv, mu, n_dof)
-        self.grad += _explicit(sys0, stp, self.data, step, prev).T @ mu
+        old = (st.q, st.v, np.zeros(n_dof), np.zeros(n_con)) if prev is None else (
+            prev.q, prev.v, prev.a, prev.lam)
+        Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
+        _design_share(sys0, stp, self.data, Q, V, A, L, coef, np.array([n]), mu[None],
+                      self.grad)
         if n == 0:
             self.grad += self.data.dq0.T @ qhb + self.data.dv0.T @ vhb
             return
