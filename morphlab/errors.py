@@ -91,6 +91,12 @@ class AccuracyWarning(MorphlabWarning):
     status is ``"warning"`` and ``result.findings`` lists what and where."""
 
 
+class KinematicAccuracyWarning(AccuracyWarning):
+    """A beam's floating frames turn too little with it: the estimated kinematic error of the
+    linear frames exceeds ``kinematic_tol`` times the beam's length
+    (:mod:`morphlab.results.kinematics`); the message suggests a number of ``frames``."""
+
+
 class Interrupted(KeyboardInterrupt):
     """A run stopped by an interrupt (Ctrl-C / SIGINT, or a KeyboardInterrupt raised by an
     observer or a progress callback). A :class:`KeyboardInterrupt`, so code that stops on

@@ -240,9 +240,17 @@ def _body_params(body) -> tuple[str, dict]:
         return "rigid", {k: getattr(body, k) for k in names}
     if isinstance(body, Beam):
         names = ("nodes", "E", "rho", "area", "second_moment", "fibre", "damping",
-                 "reference_node", "thickness", "width")
+                 "reference_node", "thickness", "width", "frames", "reference")
         return "beam", {k: getattr(body, k) for k in names}
     raise FormatError(f"body {body.name!r} of type {type(body).__name__} cannot be saved")
+
+
+def _frame_params(p: dict) -> dict:
+    """The frame arguments of a saved beam; a file from before several frames existed holds
+    ``reference_node`` only (a single tangent frame)."""
+    if p.get("reference_node") is not None:
+        return {"reference_node": int(p["reference_node"])}
+    return {"frames": int(p["frames"]), "reference": p["reference"]}
 
 
 def _rebuild_model(meta: dict, arrays: dict) -> Model:
@@ -257,7 +265,7 @@ def _rebuild_model(meta: dict, arrays: dict) -> Model:
             fibre = p["fibre"] if np.all(np.real(p["fibre"]) != 0) else None
             body = Beam(p["nodes"], E=p["E"], rho=p["rho"], area=p["area"],
                         second_moment=p["second_moment"], fibre=fibre, damping=p["damping"],
-                        reference_node=p["reference_node"], name=entry["name"])
+                        name=entry["name"], **_frame_params(p))
             body.thickness, body.width = p["thickness"], p["width"]
             body.fibre = p["fibre"]
         else:
@@ -329,7 +337,7 @@ def _result_header(result, w: Writer) -> dict:
     # ---- result fields
     res_meta = {}
     for f in dataclasses.fields(result):
-        if f.name in ("system", "settings", "energy_cache"):  # energy_cache: derived data
+        if f.name in ("system", "settings", "energy_cache", "kinematics_cache"):  # derived data
             continue
         val = getattr(result, f.name)
         if f.name == "newton_history":

@@ -14,15 +14,17 @@ def straight_nodes(n_elem, length=100.0, angle=0.0, origin=(0.0, 0.0)):
     return np.stack([origin[0] + s * np.cos(angle), origin[1] + s * np.sin(angle)], axis=1)
 
 
-def flexible_mechanism(gravity=(0.0, -9.81e3), n_elem=6):
+def flexible_mechanism(gravity=(0.0, -9.81e3), n_elem=6, **frames):
     """A closed loop: rigid crank on ground, flexible coupler beam, rigid rocker; plus a weld,
-    a point force and a torque, so every kernel contributes."""
+    a point force and a torque, so every kernel contributes. ``frames``: the coupler's frame
+    arguments (``frames``, ``reference``, ``reference_node``; default one chord frame per
+    element)."""
     m = ml.Model(gravity=gravity, name="four-bar")
     crank = m.add_rigid_body(mass=2e-4, inertia=0.2, position=(0.0, 10.0), angle=np.pi / 2,
                              name="crank")
     nodes = straight_nodes(n_elem, length=60.0, origin=(0.0, 20.0), angle=0.1)
     coupler = m.add_beam(nodes, E=E_AL, rho=RHO_AL, thickness=2.0, width=10.0,
-                         damping=1e-4, name="coupler")
+                         damping=1e-4, name="coupler", **frames)
     end = nodes[-1]
     rocker = m.add_rigid_body(mass=3e-4, inertia=0.3, position=(end[0], end[1] / 2),
                               angle=np.pi / 2, name="rocker")

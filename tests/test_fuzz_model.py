@@ -120,7 +120,8 @@ def _bad_case(rng):
     if target == 0:  # add_beam with one bad parameter
         kw = _beam_kwargs(rng)
         nodes = _valid_nodes(rng)
-        key = str(rng.choice(["E", "rho", "section", "damping", "reference_node", "nodes"]))
+        key = str(rng.choice(["E", "rho", "section", "damping", "reference_node", "nodes",
+                              "frames", "reference"]))
         if key == "nodes":
             nodes = _nodes_bad(rng)
             val = nodes
@@ -135,7 +136,15 @@ def _bad_case(rng):
             val = _scalar_bad(rng) if rng.random() < 0.7 else -float(rng.uniform(1e-9, 1.0))
             kw[key] = val
         elif key == "reference_node":
-            val = [-100, 100, 1.5, "0", None, True, np.nan][int(rng.integers(7))]
+            val = [-100, 100, 1.5, "0", True, np.nan][int(rng.integers(6))]
+            kw[key] = val
+        elif key == "frames":  # None is valid (the default); nodes have 2 to 6 elements
+            val = [0, -1, 10**6, 1.5, "2", True, np.nan, "elements"][int(rng.integers(8))]
+            kw.pop("reference_node")
+            kw[key] = val
+        elif key == "reference":
+            val = ["last", "", "Chord", 1, True][int(rng.integers(5))]
+            kw.pop("reference_node")
             kw[key] = val
         else:
             kw[key] = val = _positive_bad(rng)

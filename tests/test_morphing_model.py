@@ -72,7 +72,11 @@ def test_link_mass_and_inertia_follow_the_geometry_and_pivot_A():
 
 
 def test_run_is_cheap_and_converges(run):
-    assert run.status == "ok"
+    # the paper's single linear frame on the skin: the kinematic check flags it, and only it
+    # (docs/frames.md: its nodes err by ~0.3 mm; the estimate is within a factor 3 of that)
+    assert run.status == "warning"
+    assert [(f.check, f.where) for f in run.findings] == [("kinematic accuracy", "'skin'")]
+    assert 0.28 < run.kinematics["skin"].estimate < 5 * 0.28
     # Newton: quadratic convergence from the previous step's state needs ~2 iterations
     assert run.newton_iterations[1:].mean() < 3.0
     # Baumgarte-stabilised constraints: drift far below the shape error (~0.1 mm)

@@ -18,7 +18,8 @@ from morphlab.results.gradients import ResponseVJP
 
 
 class NodeY:
-    """y of a beam node at the final time: ``R_y + sin(th) (X_x + w_x) + cos(th) (X_y + w_y)``."""
+    """y of a beam node at the final time: ``R_y + sin(th) (X_x + w_x) + cos(th) (X_y + w_y)``
+    (``R, th`` of the frame that holds the node)."""
 
     def __init__(self, body, node):
         self.body, self.node = body, node
@@ -28,15 +29,16 @@ class NodeY:
 
     def vjp(self, res):
         info = res.system.body(self.body)
+        ref = info.node_ref[self.node]  # the frame that holds the node
         q = np.real(res.q[-1])
-        th = q[info.ref[2]]
+        th = q[ref[2]]
         c, s = np.cos(th), np.sin(th)
         X = np.real(info.X[self.node])
         nd = info.node_dofs[self.node]
         wx, wy = (q[d] if d >= 0 else 0.0 for d in nd[:2])
         g = np.zeros(res.system.n_dof)
-        g[info.ref[1]] = 1.0
-        g[info.ref[2]] = c * (X[0] + wx) - s * (X[1] + wy)
+        g[ref[1]] = 1.0
+        g[ref[2]] = c * (X[0] + wx) - s * (X[1] + wy)
         for d, val in zip(nd[:2], (s, c)):
             if d >= 0:
                 g[d] = val

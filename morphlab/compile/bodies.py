@@ -8,9 +8,13 @@ Formulation: ``docs/theory.md`` §2 (body) and §3 (element).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..kernels import beam as kbeam
+from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
+from ..model.frames import holding_frame, specs_of
 from ..model.model import Beam, RigidBody
 from .builder import Builder, compiles
 from .system import BodyInfo
@@ -40,12 +44,10 @@ def compile_rigid(body: RigidBody, b: Builder) -> None:
     b.locate[body.name] = locate
 
 
-def _frame_angle(X, r):
-    """Angle of the tangent frame at node ``r``: along the element that starts there (the one
-    that ends there for the last node). For complex nodes (a complex step through ``build``)
-    the analytic continuation, so the frame follows the perturbation exactly."""
-    nb = r + 1 if r < X.shape[0] - 1 else r - 1
-    dc = X[max(r, nb)] - X[min(r, nb)]
+def _axis_angle(Xa, Xb):
+    """Angle of the direction from ``Xa`` to ``Xb``. For complex nodes (a complex step through
+    ``build``) the analytic continuation, so the frame follows the perturbation exactly."""
+    dc = Xb - Xa
     d = np.real(dc)
     th0 = float(np.arctan2(d[1], d[0]))
     if np.iscomplexobj(dc):
@@ -53,23 +55,87 @@ def _frame_angle(X, r):
     return th0
 
 
+class _FrameJoint(NamedTuple):
+    """The rigid connection of two neighbouring frames of a beam (named like a joint)."""
+
+    name: str
+
+
 @compiles(Beam)
 def compile_beam(body: Beam, b: Builder) -> None:
-    """One FFRF body: frame at the reference node (its deformation DOFs removed), x axis along
-    its element; the element invariants summed into the body's flexible coordinates."""
-    dt = b.dtype
-    X = body.nodes
-    r = body.reference_node
-    n_node = X.shape[0]
-    th0 = _frame_angle(X, r)
-    Xb = (X - X[r]) @ rotation(th0)  # A0^T (X - X_r) for each row
-    index, ref = b.add_body(body.name, [X[r][0], X[r][1], th0], [0.0, 0.0, 0.0],
-                            np.zeros(4, dtype=dt), body.damping)
+    """A beam as one linear FFRF body per frame (``docs/frames.md``), neighbours joined at
+    their shared node by three rows ``<beam>.frame<f>.x|y|r``; a single frame keeps the
+    beam's own name for its DOFs, several are named ``<beam>#<f>``."""
+    specs = specs_of(body)
+    n_node = body.nodes.shape[0]
     node_dofs = -np.ones((n_node, 3), dtype=np.int64)
-    for k in range(n_node):
-        if k != r:
-            names = [f"{body.name}.node{k}.{lab}" for lab in ("u", "v", "phi")]
-            node_dofs[k] = b.add_dofs(names, [0.0] * 3, [0.0] * 3)
+    node_ref = np.zeros((n_node, 3), dtype=np.int64)
+    Xc = np.zeros((n_node, 2), dtype=np.result_type(body.nodes, float))
+    angle0 = [None] * n_node
+    frames = []
+    for f, spec in enumerate(specs):
+        name = body.name if len(specs) == 1 else f"{body.name}#{f}"
+        frame = _compile_frame(body, spec, name, b)
+        frames.append(frame)
+        ref, nd, Xb, th0, _ = frame
+        last = spec.last if f == len(specs) - 1 else spec.last - 1
+        rows = slice(spec.first, last + 1)
+        node_dofs[rows] = nd[: last + 1 - spec.first]
+        node_ref[rows] = ref
+        Xc[rows] = Xb[: last + 1 - spec.first]
+        angle0[rows] = [th0] * (last + 1 - spec.first)
+    for f in range(1, len(frames)):
+        _join(b, _FrameJoint(f"{body.name}.frame{f}"), frames[f - 1], frames[f])
+    index = b.bodies_count - len(frames)
+    offsets = body.frame_offsets
+    elements = slice(frames[0][4].start, frames[-1][4].stop)
+    b.bodies[body.name] = BodyInfo(
+        body.name, index, frames[0][0], frames[0][3], "beam", node_dofs,
+        Xc if len(frames) > 1 else frames[0][2], elements, node_ref,
+        np.array(angle0), np.array([fr[0] for fr in frames], dtype=np.int64), offsets)
+
+    def locate(at):
+        dofs = -np.ones(6, dtype=np.int64)
+        k, _ = body.nearest_node(at)
+        f = holding_frame(offsets, k)
+        ref, nd, Xb, th0, _ = frames[f]
+        dofs[:3] = ref
+        dofs[3:] = nd[k - specs[f].first]
+        return dofs, Xb[k - specs[f].first], th0
+
+    b.locate[body.name] = locate
+
+
+def _join(b: Builder, joint, fa, fb) -> None:
+    """Position and angle of the last node of frame ``fa`` and the first of ``fb`` equal."""
+    pa = (np.concatenate([fa[0], fa[1][-1]]), fa[2][-1], fa[3])
+    pb = (np.concatenate([fb[0], fb[1][0]]), fb[2][0], fb[3])
+    b.add_row(ROW_X, joint, "x", pa, pb, 0.0)
+    b.add_row(ROW_Y, joint, "y", pa, pb, 0.0)
+    b.add_row(ROW_ANGLE, joint, "r", pa, pb, pa[2] - pb[2])
+
+
+def _compile_frame(body: Beam, spec, name: str, b: Builder):
+    """One frame of ``body``: its body, flexible coordinates and elements.
+
+    Returns ``(ref (3,), node_dofs (n_group_nodes, 3), Xb (n_group_nodes, 2), angle0,
+    element rows)``."""
+    dt = b.dtype
+    X = body.nodes[spec.first: spec.last + 1]
+    o = body.nodes[spec.origin]
+    th0 = _axis_angle(body.nodes[spec.axis[0]], body.nodes[spec.axis[1]])
+    Xb = (X - o) @ rotation(th0)  # A0^T (X - X_o) for each row
+    index, ref = b.add_body(name, [o[0], o[1], th0], [0.0, 0.0, 0.0],
+                            np.zeros(4, dtype=dt), body.damping)
+    n_node = X.shape[0]
+    removed = set(spec.removed)
+    node_dofs = -np.ones((n_node, 3), dtype=np.int64)
+    for j in range(n_node):
+        k = spec.first + j
+        comps = [c for c in range(3) if (k, c) not in removed]
+        if comps:
+            names = [f"{name}.node{k}.{('u', 'v', 'phi')[c]}" for c in comps]
+            node_dofs[j, comps] = b.add_dofs(names, [0.0] * len(comps), [0.0] * len(comps))
     flat = node_dofs.ravel()
     keep = flat >= 0
     nf = int(keep.sum())
@@ -78,7 +144,8 @@ def compile_beam(body: Beam, b: Builder) -> None:
     flex_index[keep] = f0 + np.arange(nf)
     n_el = n_node - 1
     conn = np.stack([np.arange(n_el), np.arange(1, n_node)], axis=1).astype(np.int64)
-    scal, IS, I0S, I0IS, Me, Se, Ke, Be = _element_arrays(body, Xb, conn, dt)
+    scal, IS, I0S, I0IS, Me, Se, Ke, Be = _element_arrays(
+        body, Xb, conn, dt, slice(spec.first, spec.last))
     b.body_scal[index] = list(scal)
     efd = np.stack([flex_index.reshape(n_node, 3)[conn[:, 0]],
                     flex_index.reshape(n_node, 3)[conn[:, 1]]], axis=1).reshape(n_el, 6)
@@ -95,23 +162,18 @@ def compile_beam(body: Beam, b: Builder) -> None:
     np.add.at(fI0IS, loc[m_ok], I0IS[m_ok])
     b.close_body(flat[keep], fIS, fI0S, fI0IS)
     elements = b.add_elements(index, efd, edofs, Me, Se, Ke, Be)
-    b.bodies[body.name] = BodyInfo(body.name, index, ref, th0, "beam", node_dofs, Xb, elements)
-
-    def locate(at):
-        dofs = -np.ones(6, dtype=np.int64)
-        dofs[:3] = ref
-        k, _ = body.nearest_node(at)
-        dofs[3:] = node_dofs[k]
-        return dofs, Xb[k], th0
-
-    b.locate[body.name] = locate
+    return ref, node_dofs, Xb, th0, elements
 
 
-def _element_arrays(body: Beam, Xb, conn, dt):
-    """Invariants, matrices and stress maps of every element of ``body`` (nodes ``Xb`` in the
-    body frame): ``(scal (4,), IS, I0S, I0IS, M, St, K, B)`` (kernels.beam)."""
+def _element_arrays(body: Beam, Xb, conn, dt, rows: slice):
+    """Invariants, matrices and stress maps of the elements ``rows`` of ``body`` (their nodes
+    ``Xb`` in their frame): ``(scal (4,), IS, I0S, I0IS, M, St, K, B)`` (kernels.beam)."""
     n_el = conn.shape[0]
     ones = np.ones(n_el, dtype=dt)
+
+    def part(value):  # a section value: a scalar or one per element of the beam
+        return value[rows] if np.ndim(value) == 1 else value
+
     scal = np.zeros(4, dtype=dt)
     IS = np.zeros((n_el, 2, 6), dtype=dt)
     I0S = np.zeros((n_el, 6), dtype=dt)
@@ -122,8 +184,8 @@ def _element_arrays(body: Beam, Xb, conn, dt):
     Be = np.zeros((n_el, 2, 2, 6), dtype=dt)
     kbeam.beam_element_arrays(
         np.ascontiguousarray(Xb, dtype=dt), conn,
-        ones * (body.rho * body.area), ones * (body.E * body.area),
-        ones * (body.E * body.second_moment), ones * body.E, ones * body.fibre,
+        ones * part(body.rho * body.area), ones * part(body.E * body.area),
+        ones * part(body.E * body.second_moment), ones * part(body.E), ones * part(body.fibre),
         scal, IS, I0S, I0IS, Me, Se, Ke, Be,
     )
     return scal, IS, I0S, I0IS, Me, Se, Ke, Be

@@ -118,6 +118,11 @@ class Builder:
         self.n_elem += n
         return slice(self.n_elem - n, self.n_elem)
 
+    @property
+    def bodies_count(self) -> int:
+        """Number of (kernel) bodies added so far."""
+        return len(self.body_ref)
+
     # ---- points, constraint rows and loads
     def point(self, body: Body, at):
         """``(dofs (6,), u0 (2,), angle0)`` of the material point of ``body`` at the global

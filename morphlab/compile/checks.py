@@ -104,8 +104,10 @@ def constraint_rank(system, q=None):
     rot = np.zeros(system.n_dof, dtype=bool)
     for info in system.bodies.values():
         rot[info.ref[2]] = True
-        if info.node_dofs is not None:
-            nd = info.node_dofs[:, 2]
+        if info.frame_ref is not None:
+            rot[info.frame_ref[:, 2]] = True
+        if info.elements is not None:  # every frame's nodal rotations
+            nd = system.elem_dofs[info.elements][:, [2, 5]].ravel()
             rot[nd[nd >= 0]] = True
     col = np.where(rot, 1.0 / L, 1.0)
     row = np.where(system.con_kind == ROW_ANGLE, L, 1.0)

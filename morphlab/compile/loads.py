@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.frames import drive_node
 from ..model.model import Beam, Force, Torque
 from .builder import Builder, compiles
 
@@ -19,7 +20,7 @@ def compile_torque(t: Torque, b: Builder) -> None:
     """A torque on a body's angle (and on the nodal rotation of the beam node at ``at``)."""
     info = b.bodies[t.body.name]
     dofs = np.array([info.ref[2], -1], dtype=np.int64)
-    if t.at is not None and isinstance(t.body, Beam):
-        k, _ = t.body.nearest_node(t.at)
-        dofs[1] = info.node_dofs[k, 2]
+    if isinstance(t.body, Beam):  # without ``at``: the drive node (docs/frames.md)
+        k = t.body.nearest_node(t.at)[0] if t.at is not None else drive_node(t.body)
+        dofs[:] = info.node_ref[k, 2], info.node_dofs[k, 2]
     b.add_torque(dofs, t.magnitude, t.profile, t.name)

@@ -34,6 +34,18 @@ class BodyInfo:
         Beams: node positions in the body frame.
     elements : slice
         Beams: rows of the element arrays.
+    node_ref : (n_node, 3) int64 or None
+        Beams: reference DOFs ``R_x, R_y, theta`` of the frame that holds each node (a node
+        shared by two frames belongs to the one that starts there). ``ref``, ``angle0`` are
+        those of the first frame.
+    node_angle0 : (n_node,) or None
+        Beams: initial angle of the frame that holds each node.
+    frame_ref : (n_frames, 3) int64 or None
+        Beams: reference DOFs of each frame.
+    frame_offsets : (n_frames + 1,) int64 or None
+        Beams: first element of each frame, then the number of elements.
+
+    Beams saved before several frames existed have ``None`` in the last four (one frame).
     """
 
     name: str
@@ -44,6 +56,15 @@ class BodyInfo:
     node_dofs: np.ndarray | None = None
     X: np.ndarray | None = None
     elements: slice | None = None
+    node_ref: np.ndarray | None = None
+    node_angle0: np.ndarray | None = None
+    frame_ref: np.ndarray | None = None
+    frame_offsets: np.ndarray | None = None
+
+    @property
+    def n_frames(self) -> int:
+        """Number of floating frames (1 for a rigid body)."""
+        return 1 if self.frame_ref is None else int(self.frame_ref.shape[0])
 
 
 @dataclass

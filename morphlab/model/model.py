@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
+from .frames import drive_node, frame_offsets
+from .frames import resolve as resolve_frames
 from .profiles import Constant, Profile, as_profile
 
 
@@ -209,18 +211,27 @@ class Beam(Body):
     Every material and section value is a scalar or one value per element.
     damping : float
         Stiffness-proportional damping coefficient ``beta_d`` [s]: ``D = beta_d K``.
-    reference_node : int
-        Node whose frame is the body frame (its deformation DOFs are zero): the tangent frame at
-        that node. Default 0.
+    frames : int or "element", optional
+        Number of floating frames (1 to the number of elements), or ``"element"`` (the
+        default) for one per element: consecutive groups of elements as equal as possible,
+        the longer groups first (:attr:`frame_offsets`), joined rigidly at their shared nodes.
+    reference : {"chord", "first", "middle"}, optional
+        Where each frame sits: ``"chord"`` (default) through the group's two end nodes (u, v
+        of the first node and v of the last removed), ``"first"`` / ``"middle"`` the tangent
+        frame at the group's first / middle node (its u, v, phi removed).
+    reference_node : int, optional
+        The single tangent frame at this node (its deformation DOFs are zero), x axis along
+        the element that starts there (the one that ends there for the last node); excludes
+        ``frames`` other than 1 and ``reference``.
 
     Notes
     -----
-    The body frame sits at ``nodes[reference_node]`` with its x axis along the element that
-    starts there (the one that ends there for the last node).
+    Accuracy against cost of the frame choices: ``docs/frames.md``.
     """
 
     def __init__(self, nodes, *, E, rho, thickness=None, width=None, area=None,
-                 second_moment=None, fibre=None, damping=0.0, reference_node=0, name):
+                 second_moment=None, fibre=None, damping=0.0, frames=None, reference=None,
+                 reference_node=None, name):
         self.name = _check_name(name, "body")
         owner = f"beam {name!r}"
         try:
@@ -280,15 +291,13 @@ class Beam(Body):
         if d < 0:
             raise ModelError(f"{owner}: damping [s] must be a finite number >= 0, got {damping!r}")
         self.damping = _upcast(damping)
-        n = X.shape[0]
-        if not (isinstance(reference_node, (int, np.integer))
-                and not isinstance(reference_node, (bool, np.bool_))
-                and -n <= reference_node < n):
-            raise ModelError(
-                f"{owner}: reference_node must be a node index in [0, {n - 1}], "
-                f"got {reference_node!r}"
-            )
-        self.reference_node = int(reference_node) % n
+        self.frames, self.reference, self.reference_node = resolve_frames(
+            frames, reference, reference_node, n_el, owner)
+
+    @property
+    def frame_offsets(self) -> np.ndarray:
+        """First element of each frame, then the number of elements, (frames + 1,) int64."""
+        return frame_offsets(self.n_elements, self.frames)
 
     @property
     def n_nodes(self) -> int:
@@ -427,13 +436,14 @@ class Model:
         return self._register(body)
 
     def add_beam(self, nodes, *, E, rho, thickness=None, width=None, area=None,
-                 second_moment=None, fibre=None, damping=0.0, reference_node=0,
-                 name=None) -> Beam:
+                 second_moment=None, fibre=None, damping=0.0, frames=None, reference=None,
+                 reference_node=None, name=None) -> Beam:
         """Add a flexible :class:`Beam` (see there for the parameters and units)."""
         name = f"beam{len(self.bodies)}" if name is None else name
         return self._register(Beam(nodes, E=E, rho=rho, thickness=thickness, width=width,
                                    area=area, second_moment=second_moment, fibre=fibre,
-                                   damping=damping, reference_node=reference_node, name=name))
+                                   damping=damping, frames=frames, reference=reference,
+                                   reference_node=reference_node, name=name))
 
     def add_rigid_body(self, *, mass, inertia, position, angle=0.0, velocity=(0.0, 0.0),
                        angular_velocity=0.0, name=None) -> RigidBody:
@@ -588,7 +598,7 @@ class Model:
         if at is not None:
             at = self._check_point_on(body, at, f"drive {name!r}")
         elif isinstance(body, Beam):
-            at = body.nodes[body.reference_node]
+            at = body.nodes[drive_node(body)]
         j = Drive(name, body, prof, at)
         self.joints.append(j)
         return j

@@ -222,8 +222,9 @@ def _assemble(p: dict | None, n_elements: int, drive: bool,
     n = _check_elements(n_elements)
     X = _nodes(n, DROOP_MM)[0]
     m = Model(name="morphing leading edge")
+    # the paper's formulation: one linear floating frame, tangent at F (docs/frames.md)
     skin = m.add_beam(X, E=q["E"], rho=RHO_AL, thickness=q["t_w"], width=SPAN_MM,
-                      damping=DAMPING_S, name="skin")
+                      damping=DAMPING_S, frames=1, reference="first", name="skin")
     m.add_fix(skin, at=X[0], dofs="xyr", name="F")
     m.add_fix(skin, at=X[-1], dofs="yr", name="G")
     A = (q["x_A"], q["y_A"])

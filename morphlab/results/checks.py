@@ -9,6 +9,9 @@ reads "ok".
   frequency);
 * **implausible units**: a beam deformed by a large part of its own size, or stresses above
   the material's Young's modulus (a modulus in Pa with lengths in mm, say).
+* **kinematic accuracy**: a beam whose floating frames turn too little with it, so that the
+  linear kinematics of a frame err by more than ``kinematic_tol`` of the beam's length
+  (:mod:`morphlab.results.kinematics`); the message suggests a number of frames.
 
 Each finding names the check, where (joint, beam) and when; the run's status becomes
 ``"warning"``, an :class:`~morphlab.errors.AccuracyWarning` is emitted, or, with
@@ -22,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import AccuracyError, AccuracyWarning, ModelError
+from ..errors import AccuracyError, AccuracyWarning, KinematicAccuracyWarning, ModelError
 
 #: A beam deformed by more than this part of its size is reported (the linear floating frame is
 #: meant for small deformations relative to it).
@@ -45,11 +48,35 @@ class Finding:
     message: str
 
 
-def assess(result, constraint_tol: float) -> list[Finding]:
-    """The findings of every check on ``result`` (empty: nothing doubtful)."""
+def assess(result, constraint_tol: float, kinematic_tol: float | None = None) -> list[Finding]:
+    """The findings of every check on ``result`` (empty: nothing doubtful); the kinematic
+    accuracy is checked when ``kinematic_tol`` is given."""
     if result.n_t == 0:
         return []
-    return [f for f in (_drift(result, constraint_tol), *_beams(result)) if f is not None]
+    found = [_drift(result, constraint_tol), *_beams(result)]
+    if kinematic_tol is not None:
+        found += kinematic_findings(result, kinematic_tol)
+    return [f for f in found if f is not None]
+
+
+def kinematic_findings(result, tol: float) -> list[Finding]:
+    """A "kinematic accuracy" finding for every beam whose estimated kinematic error exceeds
+    ``tol`` times its length."""
+    out = []
+    for name, kin in result.kinematics.items():
+        if not kin.relative > tol:
+            continue
+        n_el = result.system.model.body(name).n_elements
+        k = kin.suggested_frames(tol)
+        hint = f"frames={k}" if k < n_el else "frames='element' (or a finer mesh)"
+        out.append(Finding(
+            "kinematic accuracy", repr(name), kin.relative, tol,
+            f"beam {name!r}: its {kin.frames} floating frame(s) turn too little with it: "
+            f"elements rotate up to {kin.rotation.max():.3g} rad relative to their frame, "
+            f"estimated kinematic error {kin.estimate:.3g} at t={kin.time:.6g} "
+            f"({kin.relative:.2g} of its length, kinematic_tol {tol:.1g}); use "
+            f"add_beam(..., {hint}, reference='chord') (the error falls as 1/frames^2)"))
+    return out
 
 
 def _drift(result, tol: float) -> Finding | None:
@@ -162,4 +189,16 @@ def report_findings(result, findings: list[Finding], mode: str) -> None:
         raise AccuracyError("; ".join(f.message for f in findings), result=result,
                             time=float(result.t[-1]), step=result.n_t - 1)
     for f in findings:
-        warnings.warn(AccuracyWarning(f.message), stacklevel=4)
+        kind = KinematicAccuracyWarning if f.check == "kinematic accuracy" else AccuracyWarning
+        warnings.warn(kind(f.message), stacklevel=4)
+
+
+def check_kinematic_tol(value) -> float | None:
+    """``value`` as a kinematic tolerance: None (off) or a number in (0, 1)."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)) \
+            or not 0 < float(np.real(value)) < 1 or isinstance(value, complex):
+        raise ModelError(f"kinematic_tol must be None (off) or a number in (0, 1) (relative to "
+                         f"a beam's length), got {value!r}")
+    return float(value)

@@ -139,16 +139,21 @@ def node_positions_vjp(result, body: str, time_index: int, G: np.ndarray):
     q = np.real(result.q[time_index])
     nd = info.node_dofs
     w = np.where(nd >= 0, q[np.maximum(nd, 0)], 0.0)
-    th = q[info.ref[2]]
+    several = info.n_frames > 1
+    th = q[info.node_ref[:, 2]] if several else q[info.ref[2]]
     c, s = np.cos(th), np.sin(th)
     u = np.real(info.X) + w[:, :2]
     G = np.real(G)
     dq = np.zeros(system.n_dof)
-    dq[info.ref[0]] = G[:, 0].sum()
-    dq[info.ref[1]] = G[:, 1].sum()
     # d(A u)/dth = A Ĩ u = (-s ux - c uy, c ux - s uy)
-    dq[info.ref[2]] = np.sum(G[:, 0] * (-s * u[:, 0] - c * u[:, 1])
-                             + G[:, 1] * (c * u[:, 0] - s * u[:, 1]))
+    dth = G[:, 0] * (-s * u[:, 0] - c * u[:, 1]) + G[:, 1] * (c * u[:, 0] - s * u[:, 1])
+    if several:  # each node moves with the frame that holds it
+        for j, g in enumerate((G[:, 0], G[:, 1], dth)):
+            np.add.at(dq, info.node_ref[:, j], g)
+    else:
+        dq[info.ref[0]] = G[:, 0].sum()
+        dq[info.ref[1]] = G[:, 1].sum()
+        dq[info.ref[2]] = np.sum(dth)
     AtG = np.stack([c * G[:, 0] + s * G[:, 1], -s * G[:, 0] + c * G[:, 1]], axis=1)
     for j in range(2):
         ok = nd[:, j] >= 0

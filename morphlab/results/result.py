@@ -15,6 +15,7 @@ from ..errors import ModelError
 from ..kernels.assemble import add_residual
 from ..kernels.joints import load_residual
 from ..model.model import Beam, RigidBody
+from .kinematics import kinematics
 
 
 @dataclass
@@ -61,6 +62,7 @@ class Result:
     scale: float = 1.0
     step_reductions: list = field(default_factory=list)
     energy_cache: dict | None = field(default=None, repr=False, compare=False)
+    kinematics_cache: dict | None = field(default=None, repr=False, compare=False)
     findings: list = field(default_factory=list)
     newton_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
     newton_log_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64),
@@ -106,7 +108,8 @@ class Result:
         return self.q[:, i]
 
     def reference(self, body: str):
-        """``(R (n_t, 2), theta (n_t,))`` of a body's reference frame."""
+        """``(R (n_t, 2), theta (n_t,))`` of a body's reference frame (a beam's first
+        frame)."""
         info = self.system.body(body)
         return self.q[:, info.ref[:2]], self.q[:, info.ref[2]]
 
@@ -131,20 +134,20 @@ class Result:
         one = q.ndim == 1
         q = q[None] if one else q
         info, w = self._nodal(body, q)
-        R, th = q[:, info.ref[:2]], q[:, info.ref[2]]
-        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        Rx, Ry, th = _frames_of_nodes(info, q)
+        c, s = np.cos(th), np.sin(th)
         ux = info.X[None, :, 0] + w[:, :, 0]
         uy = info.X[None, :, 1] + w[:, :, 1]
-        pos = np.stack([R[:, None, 0] + c * ux - s * uy, R[:, None, 1] + s * ux + c * uy],
-                       axis=-1)
+        pos = np.stack([Rx + c * ux - s * uy, Ry + s * ux + c * uy], axis=-1)
         return pos[0] if one else pos
 
     def node_rotations(self, body: str) -> np.ndarray:
         """Absolute rotation ``theta + phi_k`` of every node of a beam relative to its initial
         value, (n_t, n_nodes)."""
         info, w = self._nodal(body, self.q)
-        _, th = self.reference(body)
-        return th[:, None] - info.angle0 + w[:, :, 2]
+        _, _, th = _frames_of_nodes(info, self.q)
+        angle0 = info.angle0 if info.node_angle0 is None else info.node_angle0[None, :]
+        return th - angle0 + w[:, :, 2]
 
     def chord_deflection(self, body: str) -> np.ndarray:
         """Transverse deflection of every node of a beam from the straight line (chord)
@@ -162,7 +165,8 @@ class Result:
         return (d[:, None, 0] * r[:, :, 1] - d[:, None, 1] * r[:, :, 0]) / length[:, None]
 
     def deformation(self, body: str) -> np.ndarray:
-        """Nodal deformation ``(u, v, phi)`` of a beam in its body frame, (n_t, n_nodes, 3)."""
+        """Nodal deformation ``(u, v, phi)`` of a beam, each node in the frame that holds it
+        (a node shared by two frames: the one that starts there), (n_t, n_nodes, 3)."""
         return self._nodal(body, self.q)[1]
 
     def point_positions(self, body: str, at) -> np.ndarray:
@@ -214,9 +218,18 @@ class Result:
             self.energy_cache = energy(self)
         return self.energy_cache
 
+    @property
+    def kinematics(self) -> dict:
+        """Kinematic accuracy of every beam's floating frames over the run, by beam name
+        (:class:`~morphlab.results.kinematics.BeamKinematics`; computed on first access)."""
+        if self.kinematics_cache is None:
+            self.kinematics_cache = kinematics(self)
+        return self.kinematics_cache
+
     def summary(self) -> str:
-        """One paragraph with the run's statistics. Numbers are in the model's own units
-        (``model.units`` when the model names them, else "model units")."""
+        """One paragraph with the run's statistics and the beams' kinematic accuracy. Numbers
+        are in the model's own units (``model.units`` when the model names them, else "model
+        units")."""
         units = getattr(self.system.model, "units", None)
         where = f"in {units}" if units else "in model units"
         it = self.newton_iterations[1:]
@@ -236,8 +249,20 @@ class Result:
         checks = "".join(f"; check {f.check} at {f.where}: {f.message}"
                          for f in self.findings[:3])
         more = f"; {len(self.findings) - 3} more findings" if len(self.findings) > 3 else ""
+        kin = "".join(f"; beam {k!r}: {v.frames} frame(s), element rotation <= "
+                      f"{v.rotation.max():.3g} rad, kinematic error ~{v.estimate:.3g} "
+                      f"({v.relative:.2g} of its length)" for k, v in self.kinematics.items())
         return (f"{self.status}: {self.message}; {head}, {stats} ({where}), "
-                f"wall {self.wall_time:.3g} s{checks}{more}")
+                f"wall {self.wall_time:.3g} s{kin}{checks}{more}")
+
+
+def _frames_of_nodes(info, q: np.ndarray):
+    """``(R_x, R_y, theta)`` of the frame holding each node of a beam at the times of ``q``
+    (n_t, n_dof): (n_t, 1) each for a single frame, (n_t, n_nodes) for several."""
+    if info.n_frames == 1:
+        return q[:, info.ref[0], None], q[:, info.ref[1], None], q[:, info.ref[2], None]
+    nr = info.node_ref
+    return q[:, nr[:, 0]], q[:, nr[:, 1]], q[:, nr[:, 2]]
 
 
 def energy(res: Result) -> dict:

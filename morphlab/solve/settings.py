@@ -78,6 +78,10 @@ class Settings:
         AccuracyError, or nothing.
     constraint_tol : float
         Largest position-level constraint violation accepted, relative to the model size.
+    kinematic_tol : float or None
+        Largest estimated kinematic error of a beam's floating frames accepted, relative to
+        the beam's length (:mod:`morphlab.results.kinematics`; a
+        :class:`~morphlab.errors.KinematicAccuracyWarning` above it); None: not checked.
     """
 
     t_end: float
@@ -95,6 +99,7 @@ class Settings:
     compiled_newton: bool = True
     checks: str = "warn"
     constraint_tol: float = 1e-3
+    kinematic_tol: float | None = 1e-4
 
     @classmethod
     def of(cls, settings: Settings | None = None, **options) -> Settings:
@@ -150,6 +155,10 @@ class Settings:
         if not (_is_real(self.constraint_tol) and 0 < self.constraint_tol < 1):
             raise ModelError(f"constraint_tol must be a number in (0, 1), got "
                              f"{self.constraint_tol!r}")
+        if self.kinematic_tol is not None and not (_is_real(self.kinematic_tol)
+                                                   and 0 < self.kinematic_tol < 1):
+            raise ModelError(f"kinematic_tol must be None (off) or a number in (0, 1) "
+                             f"(relative to a beam's length), got {self.kinematic_tol!r}")
         if not isinstance(self.compiled_newton, (bool, np.bool_)):
             raise ModelError(f"compiled_newton must be True or False, got "
                              f"{self.compiled_newton!r}")

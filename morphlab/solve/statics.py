@@ -10,6 +10,7 @@ import numpy as np
 from ..compile import System, compile_model
 from ..errors import ConvergenceError, ModelError, SolverError
 from ..model.model import Model
+from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
 from .linalg import DENSE_MAX
 from .scheme import _is_real
@@ -18,7 +19,8 @@ from .stepper import Stepper
 
 
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
-           max_iter: int = 30, q_start=None, dense_max: int = DENSE_MAX):
+           max_iter: int = 30, q_start=None, dense_max: int = DENSE_MAX,
+           kinematic_tol: float | None = 1e-4):
     """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on
     ``(q, lam)``: ``K q + J^T lam - Q_g - Q_ext = 0``, ``Phi(q, t) = 0``.
 
@@ -38,6 +40,10 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
         Starting configuration (default: the initial configuration).
     dense_max : int
         Linear solver: see :class:`~morphlab.solve.settings.Settings`.
+    kinematic_tol : float or None
+        Largest estimated kinematic error of a beam's floating frames, relative to its length
+        (:mod:`morphlab.results.kinematics`): above it the result's status is ``"warning"``
+        with a :class:`~morphlab.errors.KinematicAccuracyWarning`; None: not checked.
 
     Returns
     -------
@@ -58,6 +64,7 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
         raise ModelError(f"t must be a finite number, got {t!r}")
     if not (_is_real(tol) and 0 < tol < 1):
         raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
+    kinematic_tol = check_kinematic_tol(kinematic_tol)
     system = model if isinstance(model, System) else compile_model(model)
     dt = system.dtype
     q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
@@ -72,7 +79,8 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     Q[0] = q
     t_wall = _time.perf_counter()
     settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
-                        max_iter=max_iter, stabilization=0.0, dense_max=dense_max)
+                        max_iter=max_iter, stabilization=0.0, dense_max=dense_max,
+                        kinematic_tol=kinematic_tol)
 
     def result(k, status, message):
         sl = slice(0, k + 1)
@@ -93,6 +101,11 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
             if isinstance(e, ConvergenceError):
                 e.args = (f"static solve: {e}; try more continuation steps",)
             e.result = result(k - 1, "failed", str(e))
+            if kinematic_tol is not None:  # what the path showed before it failed
+                e.result.findings = kinematic_findings(e.result, kinematic_tol)
             raise
         Q[k], LAM[k] = q, lam
-    return result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")
+    out = result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")
+    if kinematic_tol is not None:
+        report_findings(out, kinematic_findings(out, kinematic_tol), "warn")
+    return out

@@ -123,7 +123,8 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
                     report(n, n_steps, float(t[n]))
         except SolverError as err:
             err.result = make_result("failed", str(err))
-            err.result.findings = assess(err.result, settings.constraint_tol)
+            err.result.findings = assess(err.result, settings.constraint_tol,
+                                         settings.kinematic_tol)
             if err.result.findings:  # what the run showed before it failed
                 err.args = (f"{err}; before it: " + "; ".join(
                     f.message for f in err.result.findings),)
@@ -138,7 +139,8 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
         failure.result = make_result("failed", str(failure))
         raise failure
     result = make_result("ok", f"completed {n_steps} steps")
-    report_findings(result, assess(result, settings.constraint_tol), settings.checks)
+    report_findings(result, assess(result, settings.constraint_tol, settings.kinematic_tol),
+                    settings.checks)
     return result
 
 
