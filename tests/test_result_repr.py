@@ -78,9 +78,10 @@ def test_static_summary_and_chord_deflection_of_a_pinned_beam():
 
 
 def test_magnify_scales_the_drawn_deformation(run):
-    """A beam drawn with magnify=k lies at frame + k·(deformed - frame), the frame shape being
-    the one drawn with magnify=0 (positions are linear in the nodal deformation: exact up to
-    round-off of 60 mm coordinates); magnify=1 draws the computed positions."""
+    """A beam drawn with magnify=k lies at chord + k·(deformed - chord), the chord shape
+    (the undeformed beam moved rigidly with the line through its end nodes) being the one
+    drawn with magnify=0 (linear in k: exact up to round-off of 60 mm coordinates);
+    magnify=1 draws the computed positions. Independent of the beam's floating frames."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 from pathlib import Path
 
@@ -240,17 +239,25 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
 
 
 # --------------------------------------------------------------------------- motion
-def _magnified(result, factor: float):
-    """``result`` with every beam's nodal deformation (the coordinates relative to its body
-    frame) multiplied by ``factor``: the frames move as computed, the bending shows larger."""
-    if factor == 1.0 or result.q is None:
-        return result
-    q = np.array(result.q, copy=True)
-    for info in result.system.bodies.values():
-        if info.kind == "beam" and info.node_dofs is not None:
-            dofs = info.node_dofs[info.node_dofs >= 0]
-            q[:, dofs] *= factor
-    return dataclasses.replace(result, q=q, energy_cache=None)
+def _magnified(pos: np.ndarray, X0: np.ndarray, factor: float) -> np.ndarray:
+    """Node positions ``pos`` (n_t, n, 2) of a beam (undeformed nodes ``X0`` (n, 2)) with
+    their deformation relative to the beam's chord motion multiplied by ``factor``: the chord
+    motion is the rigid motion taking node 0 to its position and the line from the first to
+    the last node onto theirs (the first element's line for a closed beam). It does not
+    depend on how many floating frames carry the beam."""
+    if factor == 1.0:
+        return pos
+    k = X0.shape[0] - 1
+    if np.hypot(*(X0[k] - X0[0])) < 1e-9 * max(np.ptp(X0), 1.0):
+        k = 1
+    d0 = X0[k] - X0[0]
+    d = pos[:, k] - pos[:, 0]
+    ang = np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(d0[1], d0[0])
+    c, s = np.cos(ang)[:, None], np.sin(ang)[:, None]
+    u = X0 - X0[0]
+    rigid = pos[:, :1] + np.stack([c * u[:, 0] - s * u[:, 1], s * u[:, 0] + c * u[:, 1]],
+                                  axis=-1)
+    return rigid + factor * (pos - rigid)
 
 
 def _check_magnify(magnify) -> float:
@@ -263,14 +270,14 @@ def _check_magnify(magnify) -> float:
 
 def _outlines(result, magnify: float = 1.0):
     """Per body: (name, xy (n_t, k, 2), closed, is_beam) drawn as a polyline at each time;
-    beams with their deformation scaled by ``magnify`` relative to their frames."""
+    beams with their deformation scaled by ``magnify`` relative to their chord motion."""
     m = result.system.model
     pts = _attachment_points(m)
     out = []
-    shown = _magnified(result, magnify)
     for b in m.bodies:
         if isinstance(b, Beam):
-            out.append((b.name, np.real(shown.node_positions(b.name)), False, True))
+            pos = np.real(result.node_positions(b.name))
+            out.append((b.name, _magnified(pos, np.real(b.nodes), magnify), False, True))
             continue
         p = pts.get(b.name, [])
         if len(p) == 0:
@@ -335,8 +342,9 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
     units : dict, optional
         Overrides of :data:`DEFAULT_UNITS`.
     magnify : float
-        Scale of the beams' deformation relative to their body frames (1: true scale; 0:
-        the frames' rigid motion only); the title says when it is not 1.
+        Scale of the beams' deformation relative to their chord motion (the rigid motion of
+        the line through a beam's end nodes; 1: true scale, 0: that rigid motion only); the
+        title says when it is not 1.
 
     Returns
     -------
@@ -410,7 +418,7 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
     units : dict, optional
         Overrides of :data:`DEFAULT_UNITS`.
     magnify : float
-        Scale of the beams' deformation relative to their body frames (as in
+        Scale of the beams' deformation relative to their chord motion (as in
         :func:`snapshots`).
 
     Returns
