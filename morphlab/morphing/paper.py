@@ -11,10 +11,12 @@ import json
 import os
 import pathlib
 import statistics
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import KinematicAccuracyWarning
 from ..results.responses import distance
 from ..sensitivity.api import sensitivities
 from ..studies.timing import interleaved_times, median_time
@@ -43,7 +45,8 @@ def _fmt(x: float) -> str:
 def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, target,
               undeformed, paper: dict, units: dict, out=None, figures: bool = True,
               timing: bool = True, repeats: int = 3, fd_step: float = 1e-6,
-              progress: bool = False, notes: str = "") -> StudyResult:
+              progress: bool = False, notes: str = "",
+              compare: dict | None = None) -> StudyResult:
     """Run the study and (with ``out``) write figures and ``out/morphing.json``.
 
     Parameters
@@ -68,6 +71,11 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
         Repetitions of each timed run (the median is reported).
     fd_step : float
         Relative step of the finite differences.
+    compare : dict[str, callable], optional
+        Other formulations of the same model, ``{label: build}``: their responses, Table 1
+        and kinematic accuracy are reported beside the study's (``summary["formulations"]``),
+        with the node offset of their final shape from the study's and how many of the
+        paper's Table 1 signs each matches.
     """
     names = list(p0)
     sens = sensitivities(build, p0, responses, method="direct", progress=progress,
@@ -81,6 +89,8 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
 
     timing_s = _timing(build, p0, responses, settings, repeats, fd_step) if timing else {}
     summary = _summary(sens, body, e_k, stress, timing_s, p0, settings, paper)
+    summary["formulations"] = _formulations(sens, compare or {}, p0, responses, settings,
+                                            body, paper)
     report = _report(summary, names, units, paper, notes)
     study = StudyResult(summary=summary, sensitivity=sens, node_errors=e_k,
                         node_error_gradients=de_k, stress_gradients=dsig, report=report)
@@ -159,6 +169,44 @@ def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: d
     return summary
 
 
+def _signs_matched(table1: dict, paper: dict) -> int:
+    """How many Table 1 entries have the paper's sign."""
+    ref = paper.get("table1", {})
+    return sum(int(np.sign(table1[k][v]) == np.sign(ref[k][v]))
+               for k in ("ks_max_stress_MPa", "rms_error_mm") if k in ref
+               for v in ref[k] if v in table1.get(k, {}))
+
+
+def _formulation(sens, body: str, paper: dict, final_ref=None) -> dict:
+    res = sens.result
+    kin = res.kinematics.get(body)
+    table1 = {"ks_max_stress_MPa": dict(sens.gradients["ks_max_stress"]),
+              "rms_error_mm": dict(sens.gradients["rms_error"])}
+    out = {"values": dict(sens.values), "table1": table1,
+           "table1_signs_as_paper": _signs_matched(table1, paper),
+           "frames": kin.frames if kin is not None else None,
+           "kinematic_error_estimate_mm": kin.estimate if kin is not None else None,
+           "status": res.status}
+    if final_ref is not None:
+        d = np.real(res.node_positions(body, -1)) - final_ref
+        out["node_offset_from_study_mm"] = float(np.max(np.hypot(d[:, 0], d[:, 1])))
+    return out
+
+
+def _formulations(sens, builds: dict, p0: dict, responses: dict, settings: dict, body: str,
+                  paper: dict) -> dict:
+    """The study's formulation and the ``builds`` beside it (``compare`` of
+    :func:`run_study`), keyed ``"study"`` and by label."""
+    final = np.real(sens.result.node_positions(body, -1))
+    out = {"study": _formulation(sens, body, paper)}
+    for label, b in builds.items():
+        with warnings.catch_warnings():  # its kinematic error is reported in the table
+            warnings.simplefilter("ignore", KinematicAccuracyWarning)
+            other = sensitivities(b, p0, responses, method="direct", **settings)
+        out[label] = _formulation(other, body, paper, final)
+    return out
+
+
 def _write(study: StudyResult, out, figures: bool, res, body, target, undeformed, names,
            units) -> None:
     """Figures, ``morphing.json`` (written atomically) and ``report.txt`` into ``out``."""
@@ -211,6 +259,21 @@ def _report(s: dict, names, units, paper, notes) -> str:
             lines.append(f"  {label:52s} {t[key]:8.3f} s ({ratio:5.2f}x) | paper {ref_s}")
         lines.append(f"  finite differences / direct: {t['finite_difference_over_direct']:.2f}"
                      f" (paper {p2.get('finite_difference', 0) / p2.get('direct', 1):.2f})")
+    forms = s.get("formulations", {})
+    if len(forms) > 1:
+        lines.append("")
+        lines.append("The skin's floating frames: the study's skin and the others beside it")
+        lines.append(f"  {'':26s}{'frames':>8s}{'KS [MPa]':>10s}{'e_max [mm]':>11s}"
+                     f"{'e_rms [mm]':>11s}{'kin. error [mm]':>16s}{'offset [mm]':>12s}"
+                     f"{'signs as paper':>16s}")
+        for label, f in forms.items():
+            v = f["values"]
+            off = f.get("node_offset_from_study_mm")
+            lines.append(f"  {label:26s}{f['frames']!s:>8s}{v['ks_max_stress']:10.4g}"
+                         f"{v.get('max_error', float('nan')):11.4g}{v['rms_error']:11.4g}"
+                         f"{f['kinematic_error_estimate_mm'] or 0.0:16.3g}"
+                         f"{'-' if off is None else f'{off:.3g}':>12s}"
+                         f"{f['table1_signs_as_paper']:>13d}/10")
     d = s["diagnostics"]
     lines.append("")
     lines.append(f"Diagnostics: Newton iterations/step {d['newton_iterations_mean']:.2f}, max "
