@@ -21,8 +21,12 @@ Running on a cluster with Dask (``pip install 'morphlab[dask]'``)::
   process do not run designs in parallel; processes do.
 * Every node compiles the Numba kernels once into its own cache (``__pycache__`` next to the
   installed package, or ``NUMBA_CACHE_DIR``); :func:`sweep` warms each worker process up
-  before its first design, so the first batches take ~1 s (cache present) to ~1 min (fresh
-  node) longer. A shared file system with a writable cache directory saves the compilations.
+  before its first design, so the first batches take a few seconds (cache present) to a
+  minute or more (fresh node) longer. A shared file system with a writable cache directory
+  saves the compilations. (Workers of the local pool are forked from the warmed-up parent
+  where the platform forks, and need nothing.)
+* Jobs in flight follow the workers the cluster has at each moment, so an adaptive cluster
+  that is still starting its workers is used as they arrive.
 * The task travels as bytes (cloudpickle), and the workers need morphlab and whatever the task
   imports, in the same versions as the client.
 
@@ -163,7 +167,8 @@ class _Run:
         self._report()
         while queue or self.suspects or self.flight:
             if not self.suspects:
-                while queue and len(self.flight) < self.workers:
+                workers = worker_count(self.ex)
+                while queue and len(self.flight) < workers:
                     self._submit(queue.popleft())
             elif not self.flight:  # alone in flight: if its worker dies, it is the culprit
                 self._submit([self.suspects.popleft()])

@@ -34,10 +34,10 @@ def _from_columns(columns: dict) -> tuple[list[str], np.ndarray]:
     names = [str(k) for k in columns]
     cols = []
     for name, col in columns.items():
-        arr = np.asarray(col, dtype=object).ravel() if np.ndim(col) else None
-        if arr is None:
-            raise StudyError(f"design column {name!r} must be a sequence of values, got "
+        if np.ndim(col) != 1:
+            raise StudyError(f"design column {name!r} must be a 1-D sequence of values, got "
                              f"{col!r}")
+        arr = np.asarray(col, dtype=object)
         cols.append([_number(v, f"design {i}, variable {name!r}") for i, v in enumerate(arr)])
     lengths = {len(c) for c in cols}
     if len(lengths) != 1:
