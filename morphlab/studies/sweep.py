@@ -103,16 +103,7 @@ def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkp
         to worker processes.
     """
     variables, table = design_table(designs)
-    if batch_size is not None and (not isinstance(batch_size, int | np.integer)
-                                   or isinstance(batch_size, bool) or batch_size < 1):
-        raise StudyError(f"batch_size must be a positive integer or None, got {batch_size!r}")
-    if not isinstance(retries, int | np.integer) or isinstance(retries, bool) or retries < 0:
-        raise StudyError(f"retries must be an integer >= 0, got {retries!r}")
-    if not (isinstance(progress, bool) or callable(progress)):
-        raise StudyError(f"progress must be True, False or a function (done, total), got "
-                         f"{progress!r}")
-    if not callable(task):
-        raise StudyError(f"task must be a SimulationTask or a function p -> dict, got {task!r}")
+    _check_options(task, batch_size, retries, progress)
     ex, owned = make_executor(executor)
     run = None
     try:
@@ -125,6 +116,19 @@ def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkp
         for pool in ([ex] if owned else []) + (run.spare if run else []):
             pool.shutdown(wait=True, cancel_futures=True)
     return assemble(variables, table, rows)
+
+
+def _check_options(task, batch_size, retries, progress) -> None:
+    if not callable(task):
+        raise StudyError(f"task must be a SimulationTask or a function p -> dict, got {task!r}")
+    if batch_size is not None and (not isinstance(batch_size, int | np.integer)
+                                   or isinstance(batch_size, bool) or batch_size < 1):
+        raise StudyError(f"batch_size must be a positive integer or None, got {batch_size!r}")
+    if not isinstance(retries, int | np.integer) or isinstance(retries, bool) or retries < 0:
+        raise StudyError(f"retries must be an integer >= 0, got {retries!r}")
+    if not (isinstance(progress, bool) or callable(progress)):
+        raise StudyError(f"progress must be True, False or a function (done, total), got "
+                         f"{progress!r}")
 
 
 def _resumed(checkpoint, variables, table) -> list:
