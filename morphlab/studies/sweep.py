@@ -41,6 +41,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import math
 import os
+import time
 from collections import deque
 from collections.abc import Callable
 
@@ -61,6 +62,7 @@ from .tasks import (
 
 MAX_BATCH = 16
 BATCHES_PER_WORKER = 4
+WORKERS_REFRESH_S = 1.0
 
 
 def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkpoint=None,
@@ -157,7 +159,7 @@ class _Run:
         self.variables, self.retries, self.checkpoint = variables, retries, checkpoint
         self.progress = progress if callable(progress) else (_bar if progress else None)
         self.spare = []  # replacement pools this run created (closed at the end)
-        self.workers = worker_count(ex)
+        self.workers, self.asked = worker_count(ex), time.monotonic()
         self.lost = {}  # design -> times its worker died under it
         self.suspects = deque()
         self.flight = {}  # future -> (executor, design indices)
@@ -171,7 +173,7 @@ class _Run:
         self._report()
         while queue or self.suspects or self.flight:
             if not self.suspects:
-                workers = worker_count(self.ex)
+                workers = self._workers()
                 while queue and len(self.flight) < workers:
                     self._submit(queue.popleft())
             elif not self.flight:  # alone in flight: if its worker dies, it is the culprit
@@ -181,6 +183,13 @@ class _Run:
                 self._collect(future)
             self._save()
             self._report()
+
+    def _workers(self) -> int:
+        """The executor's workers, asked again at most once a second (a scheduler query)."""
+        now = time.monotonic()
+        if now - self.asked > WORKERS_REFRESH_S:
+            self.workers, self.asked = worker_count(self.ex), now
+        return self.workers
 
     def _submit(self, indices: list[int]) -> None:
         batch = [(i, dict(zip(self.variables, map(float, self.table[i])))) for i in indices]
