@@ -160,6 +160,11 @@ class _Run:
         self.progress = progress if callable(progress) else (_bar if progress else None)
         self.spare = []  # replacement pools this run created (closed at the end)
         self.workers, self.asked = worker_count(ex), time.monotonic()
+        # A crash of one process breaks a whole process pool and fails every job in it: one
+        # job per process in flight (in-process executors run a job as it is submitted).
+        # Elsewhere a lost worker loses only its own jobs, and a second job queued per worker
+        # hides the round trip to the scheduler.
+        self.per_worker = 1 if isinstance(ex, cf.ProcessPoolExecutor) or in_process(ex) else 2
         self.lost = {}  # design -> times its worker died under it
         self.suspects = deque()
         self.flight = {}  # future -> (executor, design indices)
@@ -173,8 +178,8 @@ class _Run:
         self._report()
         while queue or self.suspects or self.flight:
             if not self.suspects:
-                workers = self._workers()
-                while queue and len(self.flight) < workers:
+                window = self.per_worker * self._workers()
+                while queue and len(self.flight) < window:
                     self._submit(queue.popleft())
             elif not self.flight:  # alone in flight: if its worker dies, it is the culprit
                 self._submit([self.suspects.popleft()])
