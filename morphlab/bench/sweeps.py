@@ -8,18 +8,21 @@
 * **overhead per job**: a task that does nothing, one design per job, so what is timed is
   what the executor adds to every job (sending the design and the task bytes, the result
   back, the book-keeping of :func:`~morphlab.studies.sweep`).
+
+The executors take turns within each round, so a change of the machine's load (it is shared)
+hits all of them alike; the speed-ups are ratios of medians of the same rounds.
 """
 
 from __future__ import annotations
 
 import os
 import statistics
-import time
 
 from ..morphing import leading_edge as mo
 from ..studies.samplers import latin_hypercube
 from ..studies.sweep import sweep
 from ..studies.tasks import SimulationTask
+from ..studies.timing import interleaved_times
 
 DASK_WORKERS = 2
 
@@ -29,15 +32,16 @@ def nothing(p: dict) -> dict:
     return {"x": p["a"]}
 
 
-def _median_time(fn, repeats: int) -> dict:
-    fn()  # warm-up: worker processes, caches
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
+def _rounds(fns: dict, repeats: int) -> dict:
+    """A warm-up call of each (worker processes, caches), then interleaved rounds, so that a
+    change of the machine's load hits every executor alike; median, min, max of each."""
+    for fn in fns.values():
         fn()
-        times.append(time.perf_counter() - t0)
-    return {"median": statistics.median(times), "min": min(times), "max": max(times),
-            "runs": len(times)}
+    out = {}
+    for k, times in interleaved_times(fns, repeats).items():
+        out[k] = {"median": statistics.median(times), "min": min(times), "max": max(times),
+                  "runs": len(times)}
+    return out
 
 
 def _executors():
@@ -72,17 +76,20 @@ def run(repeats: int, quick: bool) -> dict:
     out = {"n_designs": n_designs, "settings": settings, "cpus": os.cpu_count(),
            "dask_workers": DASK_WORKERS if close else None, "designs_per_s": {},
            "time_s": {}, "overhead_per_job_ms": {}, "n_jobs": n_jobs}
+    load = os.getloadavg()[0]
     try:
-        for name, ex in executors.items():
-            t = _median_time(lambda ex=ex: sweep(task, designs, executor=ex), repeats)
-            out["time_s"][name] = t
-            out["designs_per_s"][name] = n_designs / t["median"]
-            o = _median_time(lambda ex=ex: sweep(nothing, trivial, executor=ex, batch_size=1),
-                             repeats)
-            out["overhead_per_job_ms"][name] = 1e3 * o["median"] / n_jobs
+        out["time_s"] = _rounds({name: (lambda ex=ex: sweep(task, designs, executor=ex))
+                                 for name, ex in executors.items()}, repeats)
+        jobs = _rounds({name: (lambda ex=ex: sweep(nothing, trivial, executor=ex,
+                                                   batch_size=1))
+                        for name, ex in executors.items()}, repeats)
     finally:
         if close:
             close()
+    out["load_average_1min"] = [load, os.getloadavg()[0]]
+    for name, t in out["time_s"].items():
+        out["designs_per_s"][name] = n_designs / t["median"]
+        out["overhead_per_job_ms"][name] = 1e3 * jobs[name]["median"] / n_jobs
     rate = out["designs_per_s"]
     out["speedup"] = {k: rate[k] / rate["serial"] for k in rate if k != "serial"}
     return out
@@ -100,6 +107,8 @@ def rows(s: dict) -> list[str]:
         up = s["speedup"].get(k, 1.0)
         lines.append(f"| {k} | {s['designs_per_s'][k]:.1f} | {up:.2f} | {t['median']:.3f} | "
                      f"{t['min']:.3f} | {t['max']:.3f} | {s['overhead_per_job_ms'][k]:.3f} |")
+    load = s.get("load_average_1min")
+    load = f" Load average {load[0]:.1f} before, {load[1]:.1f} after." if load else ""
     lines += ["", f"Overhead: a task that does nothing, one design per job, {s['n_jobs']} jobs "
-                  "(the pool's start included).", ""]
+                  f"(the pool's start included).{load}", ""]
     return lines
