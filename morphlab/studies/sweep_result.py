@@ -9,7 +9,7 @@ bitwise through :func:`morphlab.io.save_arrays` and turns into a pandas DataFram
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -102,7 +102,7 @@ class SweepResult:
         Response values; NaN in failed rows.
     gradients : dict of str -> dict of str -> (n,) float array
         ``gradients[r][v]``: derivative of response r by variable v (tasks with gradients
-        only; NaN in failed rows).
+        only, else empty; NaN in failed rows).
     status : (n,) str array
         ``"ok"`` or ``"failed"``.
     errors : list of str
@@ -114,14 +114,14 @@ class SweepResult:
     variables: list[str]
     designs: np.ndarray
     values: dict[str, np.ndarray]
-    gradients: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
-    status: np.ndarray = None
-    errors: list[str] = None
-    wall_time: np.ndarray = None
+    gradients: dict[str, dict[str, np.ndarray]]
+    status: np.ndarray
+    errors: list[str]
+    wall_time: np.ndarray
 
     @property
     def ok(self) -> np.ndarray:
-        """(n,) bool: rows that finished."""
+        """(n,) bool: the rows with status ``"ok"``."""
         return self.status == OK
 
     def __len__(self) -> int:
