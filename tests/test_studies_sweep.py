@@ -82,6 +82,20 @@ def test_rows_in_design_order_equal_single_sensitivity_calls(serial):
     assert np.all(serial.wall_time > 0)
 
 
+def test_values_only_and_a_subset_of_gradients():
+    plain = sweep(SimulationTask(build, RESPONSES, SETTINGS), DESIGNS[:3], executor="serial")
+    assert plain.gradients == {}
+    for i, p in enumerate(DESIGNS[:3]):
+        res = ml.simulate(build(p), **SETTINGS)
+        for r, fn in RESPONSES.items():
+            assert plain.values[r][i] == float(fn(res))  # the same run: bitwise
+    some = sweep(SimulationTask(build, RESPONSES, SETTINGS, gradients=["g"]), DESIGNS[:2],
+                 executor="serial")
+    ref = ml.sensitivities(build, DESIGNS[1], RESPONSES, variables=["g"], **SETTINGS)
+    assert list(some.gradients["tip_y"]) == ["g"]
+    assert some.gradients["tip_y"]["g"][1] == ref.gradients["tip_y"]["g"]
+
+
 @pytest.mark.parametrize("batch_size", [1, 4, None])
 def test_local_pool_equals_serial_bitwise(serial, batch_size):
     assert_same_rows(sweep(TASK, DESIGNS, batch_size=batch_size), serial)
@@ -124,9 +138,16 @@ class Killer:
 DESIGNS_1D = [{"t": float(t)} for t in range(8)]
 
 
-def test_killed_pool_worker_is_rescheduled(tmp_path):
+@pytest.mark.parametrize("own_pool", [False, True])
+def test_killed_pool_worker_is_rescheduled(tmp_path, own_pool):
+    """The default pool, or the caller's, is replaced by a fresh pool when a worker dies."""
+    import concurrent.futures as cf
+
     task = Killer(tmp_path, kill={3.0})
-    out = sweep(task, DESIGNS_1D, batch_size=2)
+    pool = cf.ProcessPoolExecutor(2) if own_pool else None
+    out = sweep(task, DESIGNS_1D, batch_size=2, executor=pool)
+    if pool is not None:
+        pool.shutdown()
     assert list(out.status) == ["ok"] * 8
     np.testing.assert_array_equal(out.values["twice"], 2.0 * np.arange(8))
     assert task.calls(3.0) == 2  # killed once, rerun alone once
