@@ -5,8 +5,7 @@ inputs alike. Nothing here imports from ``morphlab``.
 
 Numba's on-disk cache checks only the source file that defines a function, not the files of
 the kernels it calls: after an edit of ``joints.py``, the cached ``assemble.fill_matrix`` would
-keep running the old joint code (measured: a stale cache ran the Newton-matrix fill 1.6x
-slower, with the previous version of the constraint kernels). :func:`_drop_stale_cache` keeps
+keep running the old joint code. :func:`_drop_stale_cache` keeps
 one stamp over all kernel sources and removes the cache next to them when it changes.
 """
 

@@ -21,8 +21,14 @@ with ``Bq, Bv`` holding the adjoints of ``q_0, q'_0`` to meet their derivatives 
 import numpy as np
 from numba import njit
 
-from .direct import csc_residual_transposed, csc_transposed_product, split_matrices
+from .direct import (
+    add_explicit_residual,
+    csc_residual_transposed,
+    csc_transposed_product,
+    split_matrices,
+)
 from .newton import solve_factored_transposed
+from .system import Parts, with_design
 
 
 @njit(cache=True)
@@ -108,3 +114,65 @@ def _add(B, H, j):
         for i in range(B.shape[0]):
             for c in range(B.shape[1]):
                 B[i, c] += H[j, i, c]
+
+
+@njit(cache=True)
+def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale, b0,
+                           b1, TAB, tab0, k_old, k_new, n_dof, pert, work, MU, grad):
+    """The design's share of the adjoint gradient over a block of steps:
+    ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial derivative of step
+    ``j``'s residual along variable ``i`` formed as in
+    :func:`~morphlab.kernels.direct.explicit_loads` (complex step or forward difference over
+    the parts ``i`` changes) and contracted with ``MU[j]`` (K, n, m) over the residual rows
+    those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
+    (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
+    system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
+    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
+    r_off, r_idx = touched
+    n_x = grad.shape[0]
+    m = grad.shape[1]
+    forward = pert[0].imag == 0.0
+    R = work[0]
+    R0 = work[1]
+    flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
+    for i in range(n_x):
+        pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
+                   c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
+                   t_idx[t_off[i]:t_off[i + 1]])
+        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
+            continue  # the variable changes only the initial state
+        flex = f_idx[f_off[i]:f_off[i + 1]]
+        rows = r_idx[r_off[i]:r_off[i + 1]]
+        for k in flex:
+            flex_on[k] = True
+        Si = with_design(S, P, i)
+        for j in range(MU.shape[0]):
+            ko, kn = k_old[j], k_new[j]
+            tai_old = (TAB[0][ko, i], TAB[1][ko, i], TAB[2][ko, i], TAB[3][ko, i],
+                       TAB[4][ko, i])
+            tai_new = (TAB[0][kn, i], TAB[1][kn, i], TAB[2][kn, i], TAB[3][kn, i],
+                       TAB[4][kn, i])
+            add_explicit_residual(Si, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
+                                  tai_new, has_old, Q[j], V[j], A[j], L[j], w_old, tai_old,
+                                  scale, b0, b1, n_dof, R)
+            if forward:
+                ta_old = (tab0[0][ko], tab0[1][ko], tab0[2][ko], tab0[3][ko], tab0[4][ko])
+                ta_new = (tab0[0][kn], tab0[1][kn], tab0[2][kn], tab0[3][kn], tab0[4][kn])
+                add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
+                                      ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
+                                      scale, b0, b1, n_dof, R0)
+                for r in rows:
+                    d = ((R[r] - R0[r]) / pert[i]).real
+                    for c in range(m):
+                        grad[i, c] -= d * MU[j, r, c]
+                    R[r] = 0.0
+                    R0[r] = 0.0
+            else:  # Re(R / (i h)) = Im(R) / h
+                h = pert[i].imag
+                for r in rows:
+                    d = R[r].imag / h
+                    for c in range(m):
+                        grad[i, c] -= d * MU[j, r, c]
+                    R[r] = 0.0
+        for k in flex:
+            flex_on[k] = False

@@ -76,8 +76,8 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
     Newton residual in one call (``morphlab.solve.newton.StepProblem``). Returns ``|R|²`` (NaN
     or Inf when an entry is not finite)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, n_dof)
-    # an element loop, not ``R[:] = R_hist``: Numba compiles a formatted shape-mismatch error
-    # for an array assignment, 2 s of every cold start (measured)
+    # an element loop, not ``R[:] = R_hist``: for an array assignment Numba compiles a
+    # formatted shape-mismatch error, which lengthens every cold start
     for k in range(R.shape[0]):
         R[k] = R_hist[k]
     parts = all_parts(S)

@@ -12,9 +12,9 @@ displacement a cubic Hermite polynomial in ``xi = x'/L``::
     v'(xi) = H1 v1' + L H2 phi1 + H3 v2' + L H4 phi2
     H1 = 1 - 3 xi^2 + 2 xi^3,  H2 = xi - 2 xi^2 + xi^3,  H3 = 3 xi^2 - 2 xi^3,  H4 = xi^3 - xi^2
 
-and the body-frame displacement of the centre line is ``w(xi) = Rot(alpha) (u', v') = S(xi) d``
-(the 2 x 6 shape matrix of DESIGN.md §3). Mass is a line density ``rhoA`` (mass per length):
-the rotary inertia of the cross-section is neglected, as in the Euler–Bernoulli theory.
+and the body-frame displacement of the centre line is ``w(xi) = Rot(alpha) (u', v') = S(xi) d``,
+the 2 x 6 shape matrix of ``docs/theory.md`` §3.1. Mass is a line density ``rhoA`` (mass per
+length): the rotary inertia of the cross-section is neglected, as in the Euler–Bernoulli theory.
 
 Every kernel here is written for float64 and complex128 alike (complex-step safe): lengths use
 ``sqrt(dx*dx + dy*dy)``, there are no ``abs``, comparisons or ``arctan2`` on real-valued data.
@@ -84,7 +84,7 @@ def shape_matrix(xi, L, c, s, S):
 
 @njit(cache=True)
 def element_invariants(X1, X2, rhoA, scal, IS, I0S, I0IS, Mff, St):
-    """Add one element's contributions to the FFRF invariants of its body (DESIGN.md §3).
+    """Add one element's contributions to the FFRF invariants of its body (``docs/theory.md`` §2.4).
 
     Parameters
     ----------

@@ -12,7 +12,8 @@ shape (n_flex, 2)), ``I_0S`` and ``I_0ĨS``. Its elements hold their body-frame 
 ``-1`` where the reference condition removes the DOF). A rigid body is the special case with no
 flex coordinates (and ``I_u = 0`` when the reference point is the centre of mass).
 
-With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)``, ``Ĩ = [[0, -1], [1, 0]]`` (DESIGN.md §3)::
+With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)`` and ``Ĩ = [[0, -1], [1, 0]]``
+(``docs/theory.md`` §2.5-§2.9)::
 
     M a   = [ m a_R + AĨ c_u a_th + A I_S a_f ;
               (AĨ c_u).a_R + M_thth a_th + (I_0ĨS + S̃ q_f).a_f ;

@@ -44,8 +44,8 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     ``dofs``: the side's six DOFs (tuple, ``-1`` where absent); ``(ux0, uy0)``: the point in the
     body frame. Returns ``(g, vHv, grad, Hv, Ha, dvHv)``, the last four as 6-tuples on the
     local DOFs: ``grad = dg/dq``, ``Hv = H q'``, ``Ha = H q''`` and ``dvHv = d(q'^T H q')/dq``.
-    (Values, not output arrays: scratch arrays passed into a helper cost ~2.7x the whole
-    constraint residual in refcounting and lost optimization, measured.)
+    (Values, not output arrays: scratch arrays passed into a helper add reference counting
+    and keep Numba from optimizing the caller's loop, which dominates the residual's cost.)
     """
     # one scalar type for every returned value: that of the state and the point together (a
     # sensitivity pseudo-load evaluates complex points at a real state)

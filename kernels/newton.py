@@ -97,7 +97,7 @@ def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof
     sparse kind here only without it). ``max_iter = 1`` with ``tol = inf`` is one iteration.
 
     (One function, not a loop around an iteration kernel: each compiled caller re-optimizes the
-    residual and matrix kernels it links, ~2 s of every cold start per level, measured.)"""
+    residual and matrix kernels it links, which lengthens every cold start.)"""
     n = R.shape[0]
     dz1 = np.empty(n, dtype=R.dtype)  # contiguous: apply_correction as called from Python
     dz = dz1.reshape((n, 1))

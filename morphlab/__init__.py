@@ -23,7 +23,16 @@ from .errors import (
     StudyError,
 )
 from .model.model import Beam, Model, RigidBody
-from .model.profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep
+from .model.profiles import (
+    Constant,
+    Custom,
+    Linear,
+    Polynomial,
+    Profile,
+    Ramp,
+    Sine,
+    SmoothStep,
+)
 from .results import responses
 from .results.result import Result
 from .sensitivity.api import SensitivityResult, sensitivities
@@ -52,7 +61,8 @@ def __getattr__(name: str):
 
 __all__ = [
     "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
-    "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Profile",
+    "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Polynomial",
+    "Profile",
     "ProfileError", "Ramp", "ResourceError", "ResponseError", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
     "SmoothStep", "SolverError", "State", "StudyError", "System", "airfoil", "compile_model", "io",

@@ -1,15 +1,26 @@
 """Command line: ``morphlab morphing --out DIR`` (the paper's study) and friends.
 
-Bad input ends with exit status 2 and a one-line message (``--traceback`` shows the stack);
-a solver failure ends with status 1.
+Every failure ends with one line on stderr (``--traceback`` shows the stack) and an exit
+status: 2 for bad input (an ``--out`` folder that cannot be written, an invalid ``--set``),
+found before any computing; 1 for a failure while computing; 130 for an interrupt (Ctrl-C).
+The results are written into a temporary folder ``.<name>.partial-*`` next to ``--out`` and
+moved into place at the end, so an interrupted or failed run leaves no output that looks
+complete (the temporary folder is removed).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import sys
+import tempfile
 
 from .errors import MorphlabError, SolverError
+
+
+class UsageError(MorphlabError):
+    """Bad command-line input (exit status 2)."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -36,12 +47,86 @@ def _overrides(items) -> dict:
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name:
-            raise MorphlabError(f"--set expects NAME=VALUE, got {item!r}")
+            raise UsageError(f"--set expects NAME=VALUE, got {item!r}")
         try:
             out[name.strip()] = float(value)
         except ValueError:
-            raise MorphlabError(f"--set {name}: {value!r} is not a number") from None
+            raise UsageError(f"--set {name}: {value!r} is not a number") from None
     return out
+
+
+def _check_design(overrides: dict) -> None:
+    """Build the model at the overridden design once (milliseconds): a wrong name or value is
+    bad input, reported before the study computes."""
+    from .morphing import leading_edge as morphing
+
+    unknown = sorted(set(overrides) - set(morphing.DEFAULTS))
+    if unknown:
+        raise UsageError(f"--set: unknown design variable {unknown[0]!r}; known: "
+                         f"{sorted(morphing.DEFAULTS)}")
+    try:
+        morphing.build({**morphing.DEFAULTS, **overrides})
+    except MorphlabError as exc:
+        raise UsageError(f"--set: {str(exc).splitlines()[0]}") from exc
+
+
+def _staging(out: str) -> str:
+    """A new temporary folder next to ``out`` (which must be a writable folder, or a name
+    that can become one): proves ``out`` can be written before anything is computed."""
+    if not out or not out.strip():
+        raise UsageError("--out must name a folder, got an empty string")
+    target = os.path.abspath(out)
+    if os.path.exists(target) and not os.path.isdir(target):
+        raise UsageError(f"--out {out!r} exists and is not a folder")
+    parent = os.path.dirname(target)
+    try:
+        os.makedirs(parent, exist_ok=True)
+        return tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.partial-", dir=parent)
+    except OSError as exc:
+        raise UsageError(f"--out {out!r} cannot be written: {exc.strerror or exc}") from exc
+
+
+def _publish(staging: str, out: str) -> None:
+    """Move the finished results from ``staging`` into ``out`` (the folder itself when it does
+    not exist yet, else file by file, replacing files of the same name)."""
+    target = os.path.abspath(out)
+    if not os.path.exists(target):
+        os.replace(staging, target)
+        return
+    for name in sorted(os.listdir(staging)):
+        dst = os.path.join(target, name)
+        if os.path.isdir(dst) and not os.path.islink(dst):
+            shutil.rmtree(dst)
+        os.replace(os.path.join(staging, name), dst)
+    os.rmdir(staging)
+
+
+def _morphing(args) -> str:
+    from .morphing import leading_edge as morphing
+
+    overrides = _overrides(args.set)
+    staging = _staging(args.out)
+    try:
+        _check_design(overrides)
+        report = morphing.study(out=staging, overrides=overrides, quick=args.quick,
+                                figures=not args.no_figures, timing=not args.no_timing,
+                                progress=args.progress)
+        _publish(staging, args.out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return str(report)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """A KeyboardInterrupt, or an error raised while one was under way (a compiled loop
+    surfaces Ctrl-C as its own exception with the interrupt as cause or context)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,23 +139,32 @@ def main(argv: list[str] | None = None) -> int:
             warmup()
             print("morphlab: kernels compiled")
             return 0
-        from .morphing import leading_edge as morphing
-
-        report = morphing.study(out=args.out, overrides=_overrides(args.set), quick=args.quick,
-                                figures=not args.no_figures, timing=not args.no_timing,
-                                progress=args.progress)
-        print(report)
+        print(_morphing(args))
         return 0
-    except SolverError as exc:
-        if args.traceback:
+    except BaseException as exc:
+        if isinstance(exc, SystemExit) or (args.traceback and not _interrupted(exc)):
             raise
-        print(f"morphlab: solver failed: {str(exc).splitlines()[0]}", file=sys.stderr)
-        return 1
-    except (MorphlabError, OSError) as exc:
-        if args.traceback:
-            raise
-        print(f"morphlab: error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return _report(exc, args.traceback)
+
+
+def _report(exc: BaseException, traceback: bool) -> int:
+    """One line on stderr and the exit status for ``exc`` (re-raised when not ours)."""
+    if _interrupted(exc):
+        if traceback:
+            raise exc
+        print("morphlab: interrupted", file=sys.stderr)
+        return 130
+    first = (str(exc).splitlines() or [type(exc).__name__])[0]
+    if isinstance(exc, UsageError):
+        print(f"morphlab: error: {first}", file=sys.stderr)
         return 2
+    if isinstance(exc, SolverError):
+        print(f"morphlab: solver failed: {first}", file=sys.stderr)
+        return 1
+    if isinstance(exc, (MorphlabError, OSError)):
+        print(f"morphlab: error: {first}", file=sys.stderr)
+        return 1
+    raise exc
 
 
 if __name__ == "__main__":  # pragma: no cover

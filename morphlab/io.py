@@ -30,6 +30,9 @@ array, a complex number -- is stored as a member of its own and referenced from 
 by ``{"$array": "<member name>"}`` (``"scalar": true`` when it was a scalar); slices are
 ``{"$slice": [start, stop, step]}``.
 
+Every file lists its array members in ``"members"`` (sorted), so a damaged directory that
+hides members is found.
+
 ``"morphlab-arrays"`` files add ``"meta"`` (the caller's dict) and ``"arrays"`` (the member
 names); every other member is one array of the caller's dict under its own key.
 
@@ -60,14 +63,29 @@ names); every other member is one array of the caller's dict under its own key.
     members ``model/bodies/<i>/<parameter>``; ``"gravity"`` likewise.
 
 A time profile is ``{"$profile": "<class name>", "fields": {...}}`` for the profiles of
-:mod:`morphlab.profiles` with numeric parameters (``Constant, Ramp, SmoothStep, Sine,
-Linear``). A user callable (``Custom`` or a user subclass) cannot be stored without pickling
-code: it is written as ``{"$profile": null, "repr": "..."}`` and loads as an
+:mod:`morphlab.model.profiles` built from numbers (``Constant, Ramp, SmoothStep, Sine, Linear,
+Polynomial``) and from such profiles (``Sum, Scaled, Product, Integral``: their profile fields
+nested the same way). A user callable (``Custom`` or a user subclass) cannot be stored
+without pickling code: it is written as ``{"$profile": null, "repr": "..."}`` and loads as an
 :class:`UnsavedProfile`, which raises :class:`~morphlab.errors.FormatError` when evaluated, so
 everything except ``energy`` and ``System.time_arrays`` still works.
 
+``"morphlab-sensitivity"`` files (a :class:`~morphlab.sensitivity.SensitivityResult`) are
+result files of its primal ``result`` plus ``"sensitivity"``: ``method``, ``variables``,
+``design`` (the nominal ``p0``), ``values``, ``gradients``, ``timing``, ``stats`` and
+``state`` (the kept sensitivity histories, members ``sensitivity/state/<name>``, e.g.
+``(n_t, n_dof, n_x)``). A loaded one has no perturbed histories: ``derivative()`` needs the
+live object.
+
 On load, the model is rebuilt with its bodies only (for the accessors that look bodies up by
 name); to simulate again, build the model anew.
+
+Verified reading
+----------------
+Every member read is read to its end, so its CRC-32 is checked, and its ``.npy`` header must
+describe exactly its bytes (:mod:`morphlab.archive`); a damaged, foreign or incomplete file
+(missing members or metadata keys included) raises :class:`~morphlab.errors.FormatError`
+naming the file.
 
 Atomic writes
 -------------
@@ -82,26 +100,28 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import pickle
-import tempfile
 import types
-import zipfile
 
 import numpy as np
 
+from .archive import (  # noqa: F401 - UnsavedProfile: loaded profiles are of this class
+    UnsavedProfile,
+    Writer,
+    decode,
+    decode_profile,
+    read_members,
+    write_members,
+)
 from .compile.system import BodyInfo, System
 from .errors import FormatError
-from .model import profiles as _profiles
 from .model.model import Beam, Model, RigidBody
-from .model.profiles import Profile
 
 FORMAT_VERSION = 1
 RESULT_FORMAT = "morphlab-result"
+SENSITIVITY_FORMAT = "morphlab-sensitivity"
 ARRAYS_FORMAT = "morphlab-arrays"
 METADATA = "metadata"
 
-# profiles of morphlab.profiles whose parameters are plain numbers, so they can be rebuilt
-_STORABLE_PROFILES = ("Constant", "Ramp", "SmoothStep", "Sine", "Linear")
 # System fields with their own representation (everything else: arrays or plain JSON values)
 _SYSTEM_SPECIAL = ("model", "dtype", "bodies", "con_drive", "load_prof", "torque_prof")
 
@@ -110,111 +130,6 @@ def _morphlab_version() -> str:
     from . import __version__
 
     return __version__
-
-
-class UnsavedProfile(Profile):
-    """Stand-in for a time profile that could not be stored (a Python callable).
-
-    Evaluating it raises :class:`~morphlab.errors.FormatError`.
-    """
-
-    def __init__(self, description: str):
-        self.description = description
-
-    def _fail(self, t):
-        raise FormatError(
-            f"the time profile {self.description} was a Python callable and was not saved in "
-            "the file; quantities that need it (energy, System.time_arrays) are not available "
-            "from a loaded result"
-        )
-
-    value = d1 = d2 = _fail
-
-    def __repr__(self) -> str:
-        return f"UnsavedProfile({self.description})"
-
-
-# ---------------------------------------------------------------------------------------------
-# encoding of values: JSON where exact, array members otherwise
-class _Writer:
-    """Collects the array members while the metadata is encoded."""
-
-    def __init__(self):
-        self.arrays: dict[str, object] = {}
-
-    def array(self, key: str, value, scalar=False) -> dict:
-        if key in self.arrays:  # pragma: no cover - keys are built to be unique
-            raise FormatError(f"duplicate member {key!r}")
-        self.arrays[key] = value
-        return {"$array": key, "scalar": True} if scalar else {"$array": key}
-
-    def value(self, v, key: str, where: str):
-        """JSON-able form of ``v``; arrays and complex numbers become members under ``key``."""
-        if v is None or isinstance(v, (bool, str)):
-            return v
-        if isinstance(v, np.bool_):
-            return bool(v)
-        if isinstance(v, (int, np.integer)) and not isinstance(v, np.bool_):
-            return int(v)
-        if isinstance(v, (float, np.floating)):
-            return float(v)
-        if isinstance(v, (complex, np.complexfloating)):
-            return self.array(key, np.asarray(v), scalar=True)
-        if isinstance(v, np.ndarray):
-            return self.array(key, v)
-        if isinstance(v, slice):
-            return {"$slice": [v.start, v.stop, v.step]}
-        if isinstance(v, (list, tuple)):
-            return [self.value(x, f"{key}/{i}", where) for i, x in enumerate(v)]
-        if isinstance(v, dict) and all(isinstance(k, str) and not k.startswith("$") for k in v):
-            return {k: self.value(x, f"{key}/{k}", where) for k, x in v.items()}
-        raise FormatError(
-            f"{where}: a value of type {type(v).__name__} has no representation in the morphlab "
-            "file format (morphlab.io needs to learn it)"
-        )
-
-    def profile(self, p, key: str) -> dict:
-        name = type(p).__name__
-        if (name in _STORABLE_PROFILES and type(p) is getattr(_profiles, name)
-                and dataclasses.is_dataclass(p)):
-            fields = {}
-            try:
-                for f in dataclasses.fields(p):
-                    val = getattr(p, f.name)
-                    if isinstance(val, (list, tuple, slice, str)) or val is None:
-                        raise FormatError("not a number")
-                    fields[f.name] = self.value(val, f"{key}/{f.name}", "profile")
-            except FormatError:
-                pass
-            else:
-                return {"$profile": name, "fields": fields}
-        return {"$profile": None, "repr": repr(p)[:200]}
-
-
-def _decode(j, arrays):
-    """Inverse of :meth:`_Writer.value`."""
-    if isinstance(j, dict):
-        if "$array" in j:
-            key = j["$array"]
-            if key not in arrays:
-                raise FormatError(f"member {key!r} named in the metadata is missing")
-            a = arrays[key]
-            return a[()] if j.get("scalar") else a
-        if "$slice" in j:
-            return slice(*j["$slice"])
-        return {k: _decode(v, arrays) for k, v in j.items()}
-    if isinstance(j, list):
-        return [_decode(x, arrays) for x in j]
-    return j
-
-
-def _decode_profile(j, arrays) -> Profile:
-    name = j.get("$profile")
-    if name is None:
-        return UnsavedProfile(j.get("repr", "?"))
-    if name not in _STORABLE_PROFILES:
-        raise FormatError(f"unknown time profile {name!r} in the file")
-    return getattr(_profiles, name)(**_decode(j["fields"], arrays))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -230,76 +145,36 @@ def _check_key(key) -> str:
     return key
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def _write_atomic(path, metadata: dict, arrays: dict) -> None:
-    """Write ``metadata`` (JSON) and ``arrays`` as an ``.npz`` archive, atomically.
-
-    Each array is converted (``np.asanyarray``) only when its member is written, like
-    ``numpy.savez`` does, and object arrays are refused (they would need pickle).
-    """
+    """Write ``metadata`` (JSON) and ``arrays`` as an ``.npz`` archive, atomically
+    (:func:`morphlab.archive.write_members`)."""
+    metadata = {**metadata, "members": sorted(arrays)}
     try:
         text = json.dumps(metadata, allow_nan=True)
     except (TypeError, ValueError) as exc:
         raise FormatError(f"metadata cannot be written as JSON: {exc}") from exc
-    path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED,
-                                 allowZip64=True) as zf:
-                entries = [(METADATA, np.array(text))] + list(arrays.items())
-                for key, value in entries:
-                    arr = np.asanyarray(value)
-                    if arr.dtype.hasobject:
-                        raise FormatError(
-                            f"array {key!r} has dtype object (e.g. None or mixed types); only "
-                            "numeric, boolean and string arrays can be stored")
-                    with zf.open(key + ".npy", "w", force_zip64=True) as member:
-                        np.lib.format.write_array(member, np.asarray(arr), allow_pickle=False)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    write_members(path, [(METADATA, np.array(text))] + list(arrays.items()))
 
 
 def _read(path, arrays_too=True) -> tuple[dict, dict]:
     """``(metadata, arrays)`` of a morphlab file (all members read into memory, or none)."""
     name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise FileNotFoundError(f"no such file: {name!r}")
-    try:
-        npz = np.load(name, allow_pickle=False)
-    except (ValueError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as exc:
-        raise FormatError(f"{name!r} is not a morphlab file: {exc}") from exc
-    if not isinstance(npz, np.lib.npyio.NpzFile):
-        raise FormatError(f"{name!r} is not a morphlab file (a single .npy array)")
-    with npz:
-        if METADATA not in npz.files:
-            raise FormatError(f"{name!r} is not a morphlab file (no {METADATA!r} member)")
-        try:
-            keys = npz.files if arrays_too else [METADATA]
-            arrays = {k: npz[k] for k in keys}
-        except (ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise FormatError(f"{name!r} is damaged: {exc}") from exc
+    arrays = read_members(name, None if arrays_too else [METADATA])
+    if METADATA not in arrays:
+        raise FormatError(f"{name!r} is not a morphlab file (no {METADATA!r} member)")
     try:
         meta = json.loads(str(arrays.pop(METADATA)[()]))
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, RecursionError) as exc:
         raise FormatError(f"{os.fspath(path)!r}: the metadata is not valid JSON: {exc}") from exc
-    if not isinstance(meta, dict) or meta.get("format") not in (RESULT_FORMAT, ARRAYS_FORMAT):
+    kinds = (RESULT_FORMAT, ARRAYS_FORMAT, SENSITIVITY_FORMAT)
+    if not isinstance(meta, dict) or meta.get("format") not in kinds:
         raise FormatError(f"{os.fspath(path)!r} is not a morphlab file (format "
                           f"{meta.get('format') if isinstance(meta, dict) else None!r})")
+    members = meta.get("members")
+    if arrays_too and members is not None and sorted(arrays) != members:
+        lost = sorted(set(members) - set(arrays)) or sorted(set(arrays) - set(members))
+        raise FormatError(f"{os.fspath(path)!r} is incomplete or damaged: its directory does "
+                          f"not list the members of its metadata (e.g. {lost[:3]})")
     version = meta.get("format_version")
     if not isinstance(version, int) or version > FORMAT_VERSION:
         raise FormatError(
@@ -371,9 +246,9 @@ def _body_params(body) -> tuple[str, dict]:
 
 
 def _rebuild_model(meta: dict, arrays: dict) -> Model:
-    model = Model(gravity=_decode(meta["gravity"], arrays), name=meta["model"])
+    model = Model(gravity=decode(meta["gravity"], arrays), name=meta["model"])
     for entry in meta["bodies"]:
-        p = _decode(entry["params"], arrays)
+        p = decode(entry["params"], arrays)
         if entry["kind"] == "rigid":
             body = RigidBody(p["mass"], p["inertia"], p["position"], p["angle"],
                              velocity=p["velocity"], angular_velocity=p["angular_velocity"],
@@ -392,32 +267,63 @@ def _rebuild_model(meta: dict, arrays: dict) -> Model:
 
 
 def save(result, path) -> None:
-    """Save a :class:`~morphlab.results.result.Result` to ``path`` (``.npz``, atomic write).
+    """Save a :class:`~morphlab.results.result.Result` or a
+    :class:`~morphlab.sensitivity.SensitivityResult` to ``path`` (``.npz``, atomic write).
 
     Parameters
     ----------
-    result : Result
+    result : Result or SensitivityResult
         From :func:`morphlab.simulate` or :func:`morphlab.static` (also the partial
-        ``error.result`` of a failed run).
+        ``error.result`` of a failed run), or from :func:`morphlab.sensitivities` (values,
+        gradients, design, kept sensitivity histories and its primal result).
     path : str or os.PathLike
         Destination, used as given (``.npz`` is customary).
 
     Raises
     ------
     FormatError
-        ``result`` is not a Result, or holds a value the format cannot represent; nothing is
+        ``result`` is neither, or holds a value the format cannot represent; nothing is
         written then.
+    OSError
+        The file cannot be written (disk full, no permission): the message names it, an
+        existing file at ``path`` is left untouched.
 
     Notes
     -----
     The format is described in the module docstring.
     """
     from .results.result import Result
+    from .sensitivity.api import SensitivityResult
 
-    if not isinstance(result, Result):
-        raise FormatError(f"save expects a Result, got {type(result).__name__}; use "
-                          "save_arrays for a dict of arrays")
-    w = _Writer()
+    w = Writer()
+    if isinstance(result, SensitivityResult):
+        header = _result_header(result.result, w)
+        header["format"] = SENSITIVITY_FORMAT
+        header["sensitivity"] = _sensitivity_meta(result, w)
+    elif isinstance(result, Result):
+        header = _result_header(result, w)
+    else:
+        raise FormatError(f"save expects a Result or a SensitivityResult, got "
+                          f"{type(result).__name__}; use save_arrays for a dict of arrays")
+    _write_atomic(path, header, w.arrays)
+
+
+def _sensitivity_meta(sens, w: Writer) -> dict:
+    where = "SensitivityResult"
+    return {
+        "method": sens.method, "variables": [str(v) for v in sens.variables],
+        "design": w.value(dict(sens.design), "sensitivity/design", f"{where}.design"),
+        "values": w.value(dict(sens.values), "sensitivity/values", f"{where}.values"),
+        "gradients": w.value({k: dict(g) for k, g in sens.gradients.items()},
+                             "sensitivity/gradients", f"{where}.gradients"),
+        "timing": w.value(dict(sens.timing), "sensitivity/timing", f"{where}.timing"),
+        "stats": w.value(dict(sens.stats), "sensitivity/stats", f"{where}.stats"),
+        "state": {k: w.array(f"sensitivity/state/{k}", v) for k, v in sens.state.items()},
+    }
+
+
+def _result_header(result, w: Writer) -> dict:
+    """The metadata of ``result`` (its arrays go to ``w``)."""
     system: System = result.system
     model = system.model
     # ---- result fields
@@ -428,6 +334,8 @@ def save(result, path) -> None:
         val = getattr(result, f.name)
         if f.name == "newton_history":
             res_meta[f.name] = [[[float(x) for x in pair] for pair in step] for step in val]
+        elif val is None:  # a history the run did not keep (``store``)
+            res_meta[f.name] = None
         elif isinstance(val, np.ndarray) or f.type in ("np.ndarray", np.ndarray):
             w.array(f"result/{f.name}", val)  # converted while the member is written
         else:
@@ -475,36 +383,63 @@ def save(result, path) -> None:
         "gravity": w.value(np.asarray(model.gravity), "model/gravity", "Model.gravity"),
         "settings": settings, "result": res_meta, "system": sys_meta, "bodies": model_bodies,
     }
-    _write_atomic(path, header, w.arrays)
+    return header
 
 
 def load(path):
-    """Load a :class:`~morphlab.results.result.Result` saved by :func:`save`.
+    """Load a :class:`~morphlab.results.result.Result` or a
+    :class:`~morphlab.sensitivity.SensitivityResult` saved by :func:`save`.
 
     Returns
     -------
-    Result
-        Bitwise the same arrays as the saved one; ``result.system`` is a System rebuilt from
-        the file whose ``model`` holds the bodies only (see the module docstring).
+    Result or SensitivityResult
+        Bitwise the same arrays and numbers as the saved one; ``result.system`` is a System
+        rebuilt from the file whose ``model`` holds the bodies only (see the module
+        docstring).
 
     Raises
     ------
     FormatError
-        Not a morphlab result file (a :func:`save_arrays` file: use :func:`load_arrays`), or
-        a newer format version.
+        Not a morphlab result file (a :func:`save_arrays` file: use :func:`load_arrays`), a
+        newer format version, or a damaged or incomplete file; the message names the file.
     """
+    meta, arrays = _read(path)
+    name = os.fspath(path)
+    if meta["format"] == ARRAYS_FORMAT:
+        raise FormatError(f"{name!r} holds plain arrays ({meta['format']!r}); "
+                          "read it with morphlab.io.load_arrays")
+    try:
+        result = _result_from(meta, arrays)
+        if meta["format"] == SENSITIVITY_FORMAT:
+            return _sensitivity_from(meta["sensitivity"], arrays, result)
+        return result
+    except FormatError as exc:
+        raise FormatError(f"{name!r}: {exc}") from exc
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise FormatError(f"{name!r} is incomplete or damaged: {type(exc).__name__}: "
+                          f"{exc}") from exc
+
+
+def _sensitivity_from(sm: dict, arrays: dict, result):
+    from .sensitivity.api import SensitivityResult
+
+    return SensitivityResult(
+        method=sm["method"], variables=list(sm["variables"]), result=result,
+        values=decode(sm["values"], arrays), gradients=decode(sm["gradients"], arrays),
+        state={k: decode(v, arrays) for k, v in sm["state"].items()},
+        timing=decode(sm["timing"], arrays), stats=decode(sm["stats"], arrays),
+        design=decode(sm["design"], arrays))
+
+
+def _result_from(meta: dict, arrays: dict):
     from .results.result import Result
     from .solve.stepper import Settings
 
-    meta, arrays = _read(path)
-    if meta["format"] != RESULT_FORMAT:
-        raise FormatError(f"{os.fspath(path)!r} holds plain arrays ({meta['format']!r}); "
-                          "read it with morphlab.io.load_arrays")
     sm = meta["system"]
     model = _rebuild_model(meta, arrays)
     bodies = {}
     for entry in sm["bodies"]:
-        d = _decode(entry, arrays)
+        d = decode(entry, arrays)
         known = {f.name for f in dataclasses.fields(BodyInfo)}
         info = BodyInfo(**{k: v for k, v in d.items() if k in known})
         bodies[info.name] = info
@@ -514,12 +449,12 @@ def load(path):
         if key in arrays:
             kwargs[f.name] = arrays[key]
         elif f.name in sm and f.name not in _SYSTEM_SPECIAL:
-            kwargs[f.name] = _decode(sm[f.name], arrays)
+            kwargs[f.name] = decode(sm[f.name], arrays)
     kwargs.update(
         model=model, dtype=np.dtype(sm["dtype"]), bodies=bodies,
-        con_drive=[(row, _decode_profile(p, arrays)) for row, p in sm["con_drive"]],
-        load_prof=[_decode_profile(p, arrays) for p in sm["load_prof"]],
-        torque_prof=[_decode_profile(p, arrays) for p in sm["torque_prof"]],
+        con_drive=[(row, decode_profile(p, arrays)) for row, p in sm["con_drive"]],
+        load_prof=[decode_profile(p, arrays) for p in sm["load_prof"]],
+        torque_prof=[decode_profile(p, arrays) for p in sm["torque_prof"]],
     )
     for f in dataclasses.fields(System):  # a field newer than the file: unknown
         if f.name not in kwargs and f.default is dataclasses.MISSING \
@@ -530,7 +465,7 @@ def load(path):
     st = meta.get("settings")
     settings = None
     if st is not None:
-        fields = _decode(st["fields"], arrays)
+        fields = decode(st["fields"], arrays)
         if st.get("class") == "Settings":
             names = {f.name for f in dataclasses.fields(Settings)}
             settings = Settings(**{k: v for k, v in fields.items() if k in names})
@@ -548,5 +483,5 @@ def load(path):
         elif f.name == "newton_history" and f.name in rm:
             rkw[f.name] = [[tuple(pair) for pair in step] for step in rm[f.name]]
         elif f.name in rm:
-            rkw[f.name] = _decode(rm[f.name], arrays)
+            rkw[f.name] = decode(rm[f.name], arrays)
     return Result(system=system, settings=settings, **rkw)

@@ -195,7 +195,7 @@ def test_target_nodes_default() -> None:
     length = res["arc_length"]
     assert abs(arc_length(res["curve"]) - length) < 1e-12 * length
     assert abs(arc_length(res["target_curve"]) - length) < 1e-12 * length
-    # A visible droop with a modest rotation (bound for linear FFRF, DESIGN.md §7).
+    # A visible droop with a modest rotation (bound for linear FFRF, docs/theory.md §2.10, §9.4).
     assert 0.0 < res["max_rotation"] < 0.15
     assert 0.0 < res["max_chord_rotation"] <= res["max_rotation"] + 1e-12
 

@@ -5,7 +5,7 @@ References
 * Shape functions: the defining interpolation conditions of the element (axial field linear,
   transverse field cubic, nodal values and nodal slopes reproduced), checked directly on the
   kernel's output — they determine the linear/cubic Hermite interpolant uniquely.
-* Invariants, stiffness and stress: the definitions (DESIGN.md §3; Shabana, *Dynamics of
+* Invariants, stiffness and stress: the definitions (docs/theory.md §2.4, §3; Shabana, *Dynamics of
   Multibody Systems*, ch. 5 for the FFRF invariants; Przemieniecki, *Theory of Matrix Structural
   Analysis*, ch. 5 for the beam element) evaluated here with NumPy and a Gauss–Legendre rule of a
   different order than the kernel's.

@@ -1,8 +1,9 @@
 """FFRF body kernels (``morphlab.kernels.ffrf``) against independent references.
 
 The kernels form ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` from the invariants
-(DESIGN.md §3). Here every term is rebuilt without the invariants, straight from the kinematics
-of a material point ``r = R + A (u0 + S q_f)`` (Shabana, *Dynamics of Multibody Systems*, ch. 5):
+(docs/theory.md §2.5-§2.9). Here every term is rebuilt without the invariants, straight from
+the kinematics of a material point ``r = R + A (u0 + S q_f)`` (Shabana, *Dynamics of Multibody
+Systems*, ch. 5):
 
 * ``M(q) = ∫ρ L^T L dV`` with ``L = dr/dq = [I, A_θ ū, A S]``, by a Gauss–Legendre rule in
   NumPy (element shape functions from the reference of ``test_kernels_beam``);

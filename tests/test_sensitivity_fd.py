@@ -47,8 +47,9 @@ def pendulum(p, n_elem=4):
     return m
 
 
-# Variables of magnitude >= 1, so that the library's step h_i = step * max(|p_i|, 1) is a
-# relative step for all of them (see test_small_variables_... for rho and the tip mass).
+# The library's step is relative, h_i = step * |p_i| (step itself only where p_i = 0:
+# relative_steps in morphlab/sensitivity/perturb.py), so one list of steps serves variables of
+# any magnitude (test_small_variables_... checks rho and the tip mass).
 P0 = {"t": 1.5, "E": 70000.0, "M": 40.0, "x_pivot": 5.0}
 TARGET = np.real(np.asarray(pendulum(P0).body("beam").nodes)) + np.array([3.0, -5.0])
 RESPONSES = {

@@ -350,7 +350,9 @@ def test_joint_slightly_off_a_node_violates_the_initial_configuration():
     assert "from node 4 of beam 'a'" in msg
 
 
-def test_drive_with_initial_speed_needs_the_initial_angular_velocity():
+def test_drive_with_initial_speed_needs_consistent_initial_velocities():
+    """Given velocities must match the drive's speed; none given: computed (the crank's centre
+    at 10 mm moves at 10·2 mm/s)."""
     def model(omega0):
         m = ml.Model(name="crank")
         b = m.add_rigid_body(mass=1e-3, inertia=1.0, position=(10.0, 0.0),
@@ -360,5 +362,6 @@ def test_drive_with_initial_speed_needs_the_initial_angular_velocity():
         return m
 
     with pytest.raises(ml.ModelError, match="initial velocities violate constraint 'motor.r'"):
-        ml.compile_model(model(0.0))
+        ml.compile_model(model(1.0))
     assert ml.compile_model(model(2.0)).n_con == 3
+    assert np.allclose(ml.compile_model(model(0.0)).v0, [0.0, 20.0, 2.0], rtol=1e-14, atol=1e-13)

@@ -50,8 +50,8 @@ def test_bad_settings_are_refused_by_simulate(kw, name):
         ml.simulate(flexible_mechanism(), **args)
 
 
-# Gaps of solver.Settings.validate, reported to the owner of solver.py (strict: when fixed,
-# these start passing and the marker must be removed).
+# Type checks of Settings.validate (morphlab/solve/settings.py): a bool is not an iteration
+# count, a NumPy integer is one, and a string is not a number.
 def test_max_iter_true_is_refused():
     with pytest.raises(ml.ModelError, match="max_iter"):
         ml.simulate(flexible_mechanism(), t_end=0.01, dt=1e-3, max_iter=True)

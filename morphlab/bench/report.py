@@ -66,17 +66,25 @@ def table(results: dict) -> str:
                       f"direct {f['direct_per_step']:.2f}", ""]
     v = results["cases"].get("variables")
     if v:
-        lines += [f"### Growth with design variables ({v.get('n_elements', 30)}-element skin)",
-                  "", "| n_x | primal [s] | direct [s] | direct / primal | FD / primal "
-                  "(n_x+1) |", "|---|---|---|---|---|"]
+        lines += [f"### Cost against the number of design variables ({v['n_elements']}-element "
+                  f"skin, {len(v['responses'])} responses)", "",
+                  "| n_x | primal [s] | direct / primal | adjoint / primal | FD / primal |",
+                  "|---|---|---|---|---|"]
         for r in v["rows"]:
-            lines.append(f"| {r['n_x']} | {r['primal']['median']:.4f} | "
-                         f"{r['direct']['median']:.4f} | {r['direct_over_primal']:.2f} | "
-                         f"{r['finite_difference_over_primal_estimate']} |")
-        if "fit" in v:
-            lines += ["", f"straight-line fit: direct / primal = {v['fit']['intercept']:.2f} + "
-                          f"{v['fit']['per_variable']:.3f} n_x"]
-        lines.append("")
+            o = r["over_primal"]
+            lines.append(f"| {r['n_x']} | {r['seconds']['primal']:.4f} | {o['direct']:.2f} | "
+                         f"{o['adjoint']:.2f} | {o['finite_difference']:.2f} |")
+        c = v.get("crossover")
+        lines += ["", "adjoint faster than direct above n_x = "
+                  + (f"{c:.1f}" if c is not None else "(no crossing in the range measured)"), ""]
+    mem = results["cases"].get("memory")
+    if mem:
+        lines += ["### Peak memory of the adjoint on a long run", "",
+                  "| elements | DOFs | steps | budget [MiB] | primal [s] | adjoint [s] | "
+                  "segment steps | peak memory [MiB] |", "|---|---|---|---|---|---|---|---|",
+                  f"| {mem['n_elements']} | {mem['n_dof']} | {mem['steps']} | "
+                  f"{mem['budget_MiB']} | {mem['primal_s']:.1f} | {mem['adjoint_s']:.1f} | "
+                  f"{mem['segment_steps'] or 'all kept'} | {mem['peak_memory_MiB']:.0f} |", ""]
     p = results["cases"].get("profile")
     if p:
         lines += ["### Where the time goes (direct run, cProfile)", "",

@@ -11,8 +11,12 @@ shared and noisy). Cases:
                (cold) and a filled (warm) Numba cache.
 ``elements``   the skin meshed with 30 ... 3000 elements: time per step of primal and direct,
                Newton iterations per step, peak memory (fresh process each), fitted exponent.
-``variables``  1, 5, 20, 50 design variables (skin thickness per group of elements):
-               direct / primal against n_x, beside the finite-difference cost n_x + 1.
+``variables``  1, 5, 20, 50, 200 design variables on a 240-element skin (thickness per group
+               of elements and the bell-crank points), three responses: primal, direct,
+               adjoint and finite differences against n_x, and the crossover
+               (:mod:`morphlab.bench.variables`).
+``memory``     peak memory and time of the adjoint, 3000-element skin over 10 000 steps
+               (:mod:`morphlab.bench.memory`).
 ``profile``    where the time of the morphing direct run goes (cProfile, grouped).
 ``floor``      the compiled kernels of one morphing step timed alone, and the least
                direct / primal they allow (no Python, set-up or responses counted).
@@ -50,7 +54,9 @@ from ..solve.settings import Settings
 from ..solve.superlu import PIVOT_THRESHOLD
 from ..solve.timeloop import integrate
 from ..studies.timing import interleaved_times
+from .memory import case_memory
 from .report import table
+from .variables import case_variables
 
 
 def _stats(times: list[float]) -> dict:
@@ -220,55 +226,6 @@ def case_elements(repeats: int, quick: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-#: Skin elements of the design-variable case: 60, so that 50 thickness groups exist.
-VARIABLES_ELEMENTS = 60
-
-
-def case_variables(repeats: int, quick: bool) -> dict:
-    """Direct / primal against the number of design variables: the skin thickness per group
-    of adjacent elements of a 60-element skin, the KS stress as response. Primal and direct
-    both start from the design dict (build, compile, simulate, response); the per-variable
-    cost is the slope of a straight-line fit of direct / primal against n_x."""
-    import morphlab as ml
-
-    mo = _morphing()
-    settings = dict(mo.SETTINGS)
-    p_base = dict(mo.DEFAULTS)
-    n_el = VARIABLES_ELEMENTS
-    resp = {"ks_max_stress": mo.RESPONSES["ks_max_stress"]}
-    rows = []
-    for n_x in ([1, 5, 20] if quick else [1, 5, 20, 50]):
-        groups = np.array_split(np.arange(n_el), n_x)
-
-        def build(p, groups=groups):
-            t = np.empty(n_el, dtype=np.result_type(*[type(p[f"t{k}"]) for k in
-                                                       range(len(groups))], float))
-            for k, g in enumerate(groups):
-                t[g] = p[f"t{k}"]
-            q = dict(p_base)
-            q["t_w"] = t
-            return mo.build(q, n_elements=n_el)
-
-        p0 = {f"t{k}": p_base["t_w"] for k in range(n_x)}
-
-        def primal(b=build, p=p0):
-            r = ml.simulate(b(p), **settings)
-            return resp["ks_max_stress"](r)
-
-        t = _rounds({"primal": primal,
-                     "direct": lambda b=build, p=p0: ml.sensitivities(
-                         b, p, resp, method="direct", **settings)}, repeats)
-        rows.append({"n_x": n_x, "primal": t["primal"], "direct": t["direct"],
-                     "direct_over_primal": t["direct"]["median"] / t["primal"]["median"],
-                     "finite_difference_over_primal_estimate": n_x + 1})
-    nx = np.array([r["n_x"] for r in rows], dtype=float)
-    ratio = np.array([r["direct_over_primal"] for r in rows])
-    slope, intercept = np.polyfit(nx, ratio, 1)
-    return {"n_elements": n_el, "rows": rows,
-            "fit": {"per_variable": float(slope), "intercept": float(intercept)}}
-
-
-# ---------------------------------------------------------------------------------------------
 _GROUPS = (
     ("compiled Newton loops (residual, matrix, factorization, solve per iteration)",
      ("newton_loop",)),
@@ -427,8 +384,8 @@ def case_sweep(repeats: int, quick: bool) -> dict:
 
 
 CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
-         "variables": case_variables, "profile": case_profile, "floor": case_floor,
-         "exudyn": case_exudyn, "sweep": case_sweep}
+         "variables": case_variables, "memory": case_memory, "profile": case_profile,
+         "floor": case_floor, "exudyn": case_exudyn, "sweep": case_sweep}
 
 
 def main(argv=None) -> int:

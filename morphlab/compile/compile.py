@@ -16,6 +16,7 @@ from ..model.profiles import Profile
 from . import bodies, joints, loads  # noqa: F401 - they register the compile functions
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
+from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
 from .system import System
 
@@ -70,8 +71,9 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None) -> Sy
     ------
     ModelError
         Empty model; initial configuration violating the constraints beyond ``1e-9`` of the
-        model size, or initial velocities violating them; redundant or conflicting constraints
-        (rank-deficient constraint Jacobian at the initial configuration, see
+        model size, or initial velocities violating them (when the model gives none, they are
+        computed from the drives, :mod:`morphlab.compile.initial`); redundant or conflicting
+        constraints (rank-deficient constraint Jacobian at the initial configuration, see
         :func:`constraint_rank`).
     """
     if not isinstance(model, Model):
@@ -98,11 +100,15 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None) -> Sy
     else:
         sysd.update(newton_pattern(sysd))
     system = System(**sysd)
-    if same and dt.kind == "c" and like.dtype.kind == "f":
-        # a complex-step perturbation of ``like``: its real parts are those of ``like`` (to
-        # O(h^2) = 1e-60), so the checks of the initial configuration and of the constraint
-        # rank, which read real parts only, would repeat those of ``like``
-        return system
-    check_initial(system)
-    check_rank(system)
+    # a complex-step perturbation of ``like``: its real parts are those of ``like`` (to
+    # O(h^2) = 1e-60), so the checks of the initial configuration and of the constraint rank,
+    # which read real parts only, would repeat those of ``like``
+    checked = not (same and dt.kind == "c" and like.dtype.kind == "f")
+    if checked:
+        check_initial(system, velocities=False)
+        check_rank(system)
+    if needs_initial_velocities(system):
+        system.v0 = initial_velocities(system)
+    if checked:
+        check_initial(system, positions=False)
     return system

@@ -17,10 +17,25 @@ from .model import (
     Torque,
     Weld,
 )
-from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep, as_profile
+from .profiles import (
+    Constant,
+    Custom,
+    Integral,
+    Linear,
+    Polynomial,
+    Product,
+    Profile,
+    Ramp,
+    Scaled,
+    Sine,
+    SmoothStep,
+    Sum,
+    as_profile,
+)
 
 __all__ = [
-    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Joint", "Linear",
-    "Model", "Profile", "Ramp", "Revolute", "RigidBody", "Sine", "SmoothStep", "Torque", "Weld",
+    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Joint",
+    "Linear", "Model", "Polynomial", "Product", "Profile", "Ramp", "Revolute", "RigidBody",
+    "Scaled", "Sine", "SmoothStep", "Sum", "Torque", "Weld",
     "as_profile",
 ]

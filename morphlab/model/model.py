@@ -347,7 +347,8 @@ class Fix(Joint):
 @dataclass(eq=False)
 class Drive(Joint):
     """Prescribed rotation: ``angle(t) = angle_0 + f(t)`` of the body (or of a beam node at
-    ``at``); ``f(0)`` must be 0 so that the initial configuration is consistent."""
+    ``at``); ``f(0)`` must be 0 so that the initial configuration is consistent. A drive by
+    speed holds ``f = speed.integral()``."""
 
     body: Body
     profile: Profile
@@ -540,14 +541,44 @@ class Model:
         self.joints.append(j)
         return j
 
-    def add_drive(self, body, *, angle, at=None, name=None) -> Drive:
-        """Prescribe the rotation of ``body`` (or of the beam node at ``at``):
-        ``angle_0 + angle(t)``; ``angle`` is a Profile or a callable with ``angle(0) = 0``."""
+    def add_drive(self, body, *, angle=None, speed=None, at=None, name=None) -> Drive:
+        """Prescribe the rotation of ``body`` (or of the beam node at ``at``) by its angle or
+        by its angular speed; exactly one of ``angle`` and ``speed`` is given.
+
+        Parameters
+        ----------
+        angle : Profile, number or callable, optional
+            ``angle_0 + angle(t)`` [rad]; ``angle(0)`` must be 0.
+        speed : Profile or number, optional
+            Angular speed [rad per time unit]: the drive angle is ``angle_0 + int_0^t speed``,
+            integrated exactly (:meth:`Profile.integral`), so ``speed`` must be a profile with
+            a closed-form integral (Constant, Linear, Polynomial, Ramp, SmoothStep, Sine, and
+            sums and multiples of them). A speed that is not 0 at ``t = 0`` starts the
+            mechanism moving: when no body has an initial velocity, consistent ones are
+            computed at compile time (``morphlab.compile.initial``).
+
+        Raises
+        ------
+        ModelError
+            Neither or both of ``angle`` and ``speed``; a speed profile without a closed-form
+            integral; ``angle(0) != 0``.
+        """
         name = self._joint_name(name, "drive")
         body = self._own(body, f"drive {name!r}")
         if body is self.ground:
             raise ModelError(f"drive {name!r}: cannot drive the ground")
-        prof = _profile(angle, f"drive {name!r}")
+        if (angle is None) == (speed is None):
+            raise ModelError(f"drive {name!r}: give exactly one of angle= (a profile of the "
+                             "angle, 0 at t=0) and speed= (a profile of the angular speed)")
+        if speed is not None:
+            spd = _profile(speed, f"drive {name!r} speed")
+            try:
+                prof = spd.integral(0.0)
+            except ModelError as exc:
+                raise ModelError(f"drive {name!r}: speed= needs a profile with a closed-form "
+                                 f"integral: {exc}") from None
+        else:
+            prof = _profile(angle, f"drive {name!r}")
         f0 = _real(prof.value(0.0))
         if abs(f0) > 1e-12:
             raise ModelError(

@@ -3,6 +3,12 @@
 A profile scales a load or prescribes a driven coordinate. Every profile has ``value(t)``,
 ``d1(t)`` and ``d2(t)``; the time ``t`` is always a real float (time is not a design variable),
 while the profile's own parameters may be complex during complex-step differentiation.
+
+Profiles combine with operators: ``f + g``, ``f - g``, ``k * f``, ``f / k`` (``k`` a number)
+and ``f * g`` (derivatives by the product rule), each again a profile. ``f.integral(c0)`` is
+the exact antiderivative ``c0 + int_0^t f`` for the profiles with a closed-form primitive
+(:class:`Constant`, :class:`Linear`, :class:`Polynomial`, :class:`Ramp`, :class:`SmoothStep`,
+:class:`Sine`, and sums and multiples of them); a speed drive integrates its speed this way.
 """
 
 from __future__ import annotations
@@ -30,6 +36,55 @@ class Profile:
 
     def __call__(self, t: float):
         return self.value(t)
+
+    # ---- algebra: every result is again a profile with exact derivatives
+    def __add__(self, other):
+        return Sum(self, _operand(other, "+"))
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        return Sum(self, Scaled(-1.0, _operand(other, "-")))
+
+    def __rsub__(self, other):
+        return Sum(_operand(other, "-"), Scaled(-1.0, self))
+
+    def __neg__(self):
+        return Scaled(-1.0, self)
+
+    def __mul__(self, other):
+        if isinstance(other, Profile):
+            return Product(self, other)
+        return Scaled(_number(other, "*"), self)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        k = _number(other, "/")
+        if k == 0:
+            raise ModelError("profile / 0: division by zero")
+        return Scaled(1.0 / k, self)
+
+    # ---- exact integration
+    def primitive(self, t):
+        """An antiderivative ``F`` (``F' = f``) at ``t`` (a float or an array of times), in
+        closed form; profiles without one raise :class:`~morphlab.errors.ModelError`."""
+        raise ModelError(
+            f"{type(self).__name__} has no closed-form integral; integrable profiles: Constant, "
+            "Linear, Polynomial, Ramp, SmoothStep, Sine and sums and multiples of them (for a "
+            "function of your own give the angle itself, e.g. Custom(f, df, ddf))")
+
+    def integral(self, c0: float = 0.0) -> Integral:
+        """The exact integral ``F(t) = c0 + int_0^t f(s) ds`` as a profile (``F' = f``,
+        ``F'' = f'``).
+
+        Raises
+        ------
+        ModelError
+            The profile has no closed-form primitive (e.g. :class:`Custom`, a product).
+        """
+        self.primitive(0.0)  # fail now, not in a run
+        return Integral(self, c0)
 
     def table(self, times):
         """``(f, f', f'')`` at every time of ``times`` (arrays); profiles override this with
@@ -60,6 +115,25 @@ class Constant(Profile):
     def table(self, times):
         one = np.ones(len(times))
         return one * self.level, one * 0.0 * self.level, one * 0.0 * self.level
+
+    def primitive(self, t):
+        return self.level * np.asarray(t, dtype=float)[()]
+
+
+def _number(k, op):
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, float, complex, np.number)):
+        raise ModelError(f"profile {op} {type(k).__name__}: a profile combines with numbers and "
+                         "other profiles only")
+    return k
+
+
+def _operand(other, op) -> Profile:
+    return other if isinstance(other, Profile) else Constant(_number(other, op))
+
+
+def _scalar(x, t):
+    """``x`` as a scalar when ``t`` was one (primitives are written for arrays of times)."""
+    return x[()] if np.ndim(t) == 0 else x
 
 
 def _check_interval(t0, t1, name):
@@ -100,6 +174,13 @@ class Ramp(Profile):
         return (np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0),
                 np.where(inside, 1.0 / (self.t1 - self.t0), 0.0), np.zeros_like(t))
 
+    def primitive(self, t):
+        """``(t - t0)² / 2T`` on the rise (``T = t1 - t0``), ``T/2 + t - t1`` after it."""
+        s = np.asarray(t, dtype=float)
+        T = self.t1 - self.t0
+        x = np.clip(s, self.t0, self.t1) - self.t0
+        return _scalar(x * x / (2.0 * T) + np.maximum(s - self.t1, 0.0), t)
+
 
 @dataclass(frozen=True)
 class SmoothStep(Profile):
@@ -133,6 +214,13 @@ class SmoothStep(Profile):
         x = self._x(t)
         return 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (self.t1 - self.t0) ** 2
 
+    def primitive(self, t):
+        """``T (5/2 x⁴ - 3 x⁵ + x⁶)`` on the step, ``T/2 + t - t1`` after it."""
+        s = np.asarray(t, dtype=float)
+        T = self.t1 - self.t0
+        x = np.clip((s - self.t0) / T, 0.0, 1.0)
+        return _scalar(T * x**4 * (2.5 - 3.0 * x + x * x) + np.maximum(s - self.t1, 0.0), t)
+
 
 @dataclass(frozen=True)
 class Sine(Profile):
@@ -150,6 +238,11 @@ class Sine(Profile):
     def d2(self, t):
         return -self.omega**2 * math.sin(self.omega * t + self.phase)
 
+    def primitive(self, t):
+        if self.omega == 0:
+            return np.sin(self.phase) * np.asarray(t, dtype=float)[()]
+        return -np.cos(self.omega * np.asarray(t, dtype=float) + self.phase)[()] / self.omega
+
 
 @dataclass(frozen=True)
 class Linear(Profile):
@@ -165,6 +258,145 @@ class Linear(Profile):
 
     def d2(self, t):
         return 0.0 * self.rate
+
+    def primitive(self, t):
+        return 0.5 * self.rate * np.asarray(t, dtype=float)[()] ** 2
+
+
+@dataclass(frozen=True)
+class Polynomial(Profile):
+    """``f(t) = c[0] + c[1] t + c[2] t² + ...`` (``coefficients`` a tuple of numbers)."""
+
+    coefficients: tuple
+
+    def __post_init__(self):
+        c = tuple(self.coefficients) if np.ndim(self.coefficients) else (self.coefficients,)
+        for k in c:
+            _number(k, "Polynomial coefficient")
+        object.__setattr__(self, "coefficients", c or (0.0,))
+
+    def _eval(self, c, t):
+        out = 0.0 * np.asarray(t, dtype=float)
+        for k in reversed(c):  # Horner
+            out = out * t + k
+        return out
+
+    def _deriv(self, c):
+        return tuple(k * c[k] for k in range(1, len(c))) or (0.0 * c[0],)
+
+    def value(self, t):
+        return self._eval(self.coefficients, t)[()]
+
+    def d1(self, t):
+        return self._eval(self._deriv(self.coefficients), t)[()]
+
+    def d2(self, t):
+        return self._eval(self._deriv(self._deriv(self.coefficients)), t)[()]
+
+    def table(self, times):
+        t = np.asarray(times, dtype=float)
+        c1 = self._deriv(self.coefficients)
+        return (self._eval(self.coefficients, t), self._eval(c1, t),
+                self._eval(self._deriv(c1), t))
+
+    def primitive(self, t):
+        c = (0.0,) + tuple(k / (i + 1) for i, k in enumerate(self.coefficients))
+        return self._eval(c, np.asarray(t, dtype=float))[()]
+
+
+@dataclass(frozen=True)
+class Sum(Profile):
+    """``f = a + b`` (made by ``a + b``)."""
+
+    a: Profile
+    b: Profile
+
+    def value(self, t):
+        return self.a.value(t) + self.b.value(t)
+
+    def d1(self, t):
+        return self.a.d1(t) + self.b.d1(t)
+
+    def d2(self, t):
+        return self.a.d2(t) + self.b.d2(t)
+
+    def table(self, times):
+        return tuple(x + y for x, y in zip(self.a.table(times), self.b.table(times)))
+
+    def primitive(self, t):
+        return self.a.primitive(t) + self.b.primitive(t)
+
+
+@dataclass(frozen=True)
+class Scaled(Profile):
+    """``f = factor * profile`` (made by ``factor * profile``; ``factor`` a number)."""
+
+    factor: float
+    profile: Profile
+
+    def value(self, t):
+        return self.factor * self.profile.value(t)
+
+    def d1(self, t):
+        return self.factor * self.profile.d1(t)
+
+    def d2(self, t):
+        return self.factor * self.profile.d2(t)
+
+    def table(self, times):
+        return tuple(self.factor * np.asarray(x) for x in self.profile.table(times))
+
+    def primitive(self, t):
+        return self.factor * self.profile.primitive(t)
+
+
+@dataclass(frozen=True)
+class Product(Profile):
+    """``f = a b`` (made by ``a * b``): ``f' = a' b + a b'``, ``f'' = a'' b + 2 a' b' + a b''``.
+    No closed-form integral in general."""
+
+    a: Profile
+    b: Profile
+
+    def value(self, t):
+        return self.a.value(t) * self.b.value(t)
+
+    def d1(self, t):
+        return self.a.d1(t) * self.b.value(t) + self.a.value(t) * self.b.d1(t)
+
+    def d2(self, t):
+        a, a1, a2 = self.a.value(t), self.a.d1(t), self.a.d2(t)
+        b, b1, b2 = self.b.value(t), self.b.d1(t), self.b.d2(t)
+        return a2 * b + 2.0 * a1 * b1 + a * b2
+
+    def table(self, times):
+        (a, a1, a2), (b, b1, b2) = self.a.table(times), self.b.table(times)
+        return a * b, a1 * b + a * b1, a2 * b + 2.0 * a1 * b1 + a * b2
+
+
+@dataclass(frozen=True)
+class Integral(Profile):
+    """``F(t) = c0 + int_0^t f(s) ds`` of a profile ``f`` with a closed-form primitive (made by
+    ``f.integral(c0)``): ``F' = f``, ``F'' = f'``; ``F(0) = c0`` exactly."""
+
+    profile: Profile
+    c0: float = 0.0
+
+    def value(self, t):
+        p = self.profile
+        return self.c0 + (p.primitive(t) - p.primitive(0.0))
+
+    def d1(self, t):
+        return self.profile.value(t)
+
+    def d2(self, t):
+        return self.profile.d1(t)
+
+    def table(self, times):
+        t = np.asarray(times, dtype=float)
+        f, f1, _ = self.profile.table(t)
+        F = self.c0 + (np.asarray(self.profile.primitive(t)) - self.profile.primitive(0.0))
+        return F + 0.0 * t, np.asarray(f) + 0.0 * t, np.asarray(f1) + 0.0 * t
 
 
 @dataclass(frozen=True)

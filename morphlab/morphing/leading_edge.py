@@ -1,11 +1,12 @@
 """The morphing leading edge of the paper (§4): parametric model, settings, responses, design.
 
-Model (DESIGN.md §7, one reading of the paper's text; its figure is not available)
------------------------------------------------------------------------------------
+Model (one reading of the paper's text, its figure not being available; docs/theory.md §9.3)
+----------------------------------------------------------------------------------------------
 Body 1, ``"skin"``: 30 Euler–Bernoulli elements (31 nodes) at equal arc length on the
-high-speed airfoil of :mod:`morphlab.airfoil`, from F (node 0, upper surface at the front spar,
-x = 137.5 mm) round the nose to G (node 30, lower surface at the spar); wall ``t_w``, span
-1000 mm, aluminium. F is clamped (x, y, rotation); G keeps y and rotation and slides in x.
+high-speed airfoil of :mod:`morphlab.morphing.airfoil`, from F (node 0, upper surface at the
+front spar, x = 137.5 mm) round the nose to G (node 30, lower surface at the spar); wall
+``t_w``, span 1000 mm, aluminium. F is clamped (x, y, rotation); G keeps y and rotation and
+slides in x.
 Bodies 2–5 are rigid aluminium bars (section :data:`LINK_SECTION_MM2`; mass ``rho A L``,
 inertia ``m L²/12`` about the bar's middle):
 
@@ -19,8 +20,8 @@ Joints: revolute A (ground–crank), revolute B (crank–link_C) and weld B (cra
 C (link_C–skin), revolute D (arm–link_E), revolute E (link_E–skin). Moving A (design variables
 ``x_A``, ``y_A``) changes the crank only (it spans A -> B, B stays).
 
-Mechanism (how the numbers were found; the tools are in :mod:`morphlab.morphing_design`)
--------------------------------------------------------------------------------
+Mechanism (how the numbers were found; the tools are in :mod:`morphlab.morphing.design`)
+---------------------------------------------------------------------------------------
 The skin's frame is held by the clamp at F, so in linear FFRF the skin is a *linear* elastic
 structure: its morphed shape is ``X + G f`` for the two link forces ``f`` at C and E (G: the
 skin's compliance, :func:`skin_compliance`). The design therefore runs backwards from the shape:
@@ -39,7 +40,7 @@ skin's compliance, :func:`skin_compliance`). The design therefore runs backwards
 3. Not every such mechanism reaches that state under a growing torque: the torque–angle path
    (:func:`torque_angle_curve`, static with the crank angle prescribed) must rise
    monotonically, or the crank snaps through. A scan (pairs C = 3..7, E = 21..24; x_A = 80 ...
-   125 mm in 1 mm steps; ``delta`` = 0.4 ... 1.2 rad in steps of 0.05; 140 s) kept the designs
+   125 mm in 1 mm steps; ``delta`` = 0.4 ... 1.2 rad in steps of 0.05) kept the designs
    whose path rises with at least 40 % of its mean slope up to the design angle and keeps
    rising to 1.3 times it, with the pivots A, B, D at least 5 mm inside the skin at all
    times, no link crossing the skin, crank arms >= 8 mm and links >= 20 mm (10 of them), and
@@ -54,17 +55,18 @@ are short (|AB| = 8.4 mm, |AD| = 8.9 mm; links 44.8 and 50.6 mm) and the crank t
 M_t delta`` equals the strain energy (3.8 J), so ``delta >= 0.38 rad`` and the crank radius is
 about the skin's displacement at the links (~4 mm) over ``delta``.
 
-Numbers (defaults, :data:`SETTINGS`; measured on 2 cores)
----------------------------------------------------------
-* target droop 6 mm (:data:`morphlab.airfoil.DEFAULT_DROOP_MM`); G slides 4.65 mm aft
-  (target: 4.59 mm);
+Numbers (defaults, :data:`SETTINGS`)
+------------------------------------
+* target droop 6 mm (:data:`morphlab.morphing.airfoil.DEFAULT_DROOP_MM`, chosen as in
+  ``docs/theory.md`` §9.4); G slides 4.65 mm aft (target: 4.59 mm);
 * KS max stress 83.24 MPa (exact max 82.77 MPa, at E, at the end of the ramp and through the
   hold); RMS shape error 0.1012 mm, max 0.2447 mm (at the nose, node 15); paper: 149.96 MPa,
   0.6348 mm, 1.185 mm. Yield of 6061-T6: >= 240 MPa;
 * largest node rotation 0.101 rad (linear FFRF: spurious stretch ~ phi²/2 <= 0.5 % where the
   skin turns most); the simulated skin polygon is 0.535 mm (0.18 %) longer than the undeformed
-  one, while the target keeps its length to 0.0002 mm: the fitted forces absorb most of it,
-  the rest is inside the shape error;
+  one, while the target keeps its length to 0.0002 mm. The same skin split into 15 floating
+  frames (``docs/theory.md`` §2.10) ends up to 0.28 mm (0.12 mm RMS) from these nodes: the
+  single frame's linearization error is of the size of the shape error;
 * final state vs :func:`morphlab.static` at ``t_end``: nodes agree to 2e-12 mm, stresses to
   2e-10 MPa; energy balance (torque work = strain energy + damping loss) closes to 7e-5 of the
   work;
@@ -72,8 +74,8 @@ Numbers (defaults, :data:`SETTINGS`; measured on 2 cores)
   twice as many values near the max in the hold);
 * mesh: 60 and 120 elements (C and E at the same material points) give KS 83.18 / 83.17 MPa
   and RMS error 0.1018 / 0.1022 mm: the design, fitted on 30 elements, holds;
-* one :func:`morphlab.simulate` of the defaults: 300 steps, 1.8 Newton iterations per step,
-  0.16 s warm (build included).
+* one :func:`morphlab.simulate` of the defaults: 300 steps, 1.8 Newton iterations per step
+  (run times: BENCHMARKS.md).
 
 Units: mm, t, s, N, N·mm, MPa.
 """

@@ -79,34 +79,56 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     dsig = np.real(sens.stress(body))
     stress = np.real(res.stress(body))
 
+    timing_s = _timing(build, p0, responses, settings, repeats, fd_step) if timing else {}
+    summary = _summary(sens, body, e_k, stress, timing_s, p0, settings, paper)
+    report = _report(summary, names, units, paper, notes)
+    study = StudyResult(summary=summary, sensitivity=sens, node_errors=e_k,
+                        node_error_gradients=de_k, stress_gradients=dsig, report=report)
+    if out is not None:
+        _write(study, out, figures, res, body, target, undeformed, names, units)
+    return study
+
+
+def _timing(build, p0: dict, responses: dict, settings: dict, repeats: int,
+            fd_step: float) -> dict:
+    """Table 2: medians [s] of interleaved rounds of the primal (as a user runs it: build,
+    simulate, responses), the solver alone, direct with complex-step and with
+    forward-difference partials, and finite differences; with their ratios."""
+    from ..compile import compile_model
+    from ..solve.timeloop import simulate
+
+    sys0 = compile_model(build(dict(p0)))
+
+    def primal():  # one analysis of the design, as a user runs it (BENCHMARKS.md)
+        r = simulate(build(dict(p0)), **settings)
+        return {k: f(r) for k, f in responses.items()}
+
+    runs = {
+        "primal": primal,
+        "primal_solver_only": lambda: simulate(sys0, **settings),
+        "direct": lambda: sensitivities(build, p0, responses, method="direct", **settings),
+        "direct_fd": lambda: sensitivities(build, p0, responses, method="direct-fd",
+                                           step=fd_step, **settings),
+    }
     timing_s: dict = {}
-    if timing:
-        from ..compile import compile_model
-        from ..solve.timeloop import simulate
+    for k, times in interleaved_times(runs, repeats).items():
+        timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
+    timing_s["finite_difference"], timing_s["finite_difference_runs"] = median_time(
+        lambda: sensitivities(build, p0, responses, method="forward-difference",
+                              step=fd_step, **settings), max(1, repeats // 2))
+    for k in ("direct", "direct_fd", "finite_difference"):
+        timing_s[f"{k}_over_primal"] = timing_s[k] / timing_s["primal"]
+    timing_s["finite_difference_over_direct"] = (timing_s["finite_difference"]
+                                                 / timing_s["direct"])
+    return timing_s
 
-        sys0 = compile_model(build(dict(p0)))
 
-        def primal():  # one analysis of the design, as a user runs it (BENCHMARKS.md)
-            r = simulate(build(dict(p0)), **settings)
-            return {k: f(r) for k, f in responses.items()}
-
-        runs = {
-            "primal": primal,
-            "primal_solver_only": lambda: simulate(sys0, **settings),
-            "direct": lambda: sensitivities(build, p0, responses, method="direct", **settings),
-            "direct_fd": lambda: sensitivities(build, p0, responses, method="direct-fd",
-                                               step=fd_step, **settings),
-        }
-        for k, times in interleaved_times(runs, repeats).items():
-            timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
-        timing_s["finite_difference"], timing_s["finite_difference_runs"] = median_time(
-            lambda: sensitivities(build, p0, responses, method="forward-difference",
-                                  step=fd_step, **settings), max(1, repeats // 2))
-        for k in ("direct", "direct_fd", "finite_difference"):
-            timing_s[f"{k}_over_primal"] = timing_s[k] / timing_s["primal"]
-        timing_s["finite_difference_over_direct"] = (timing_s["finite_difference"]
-                                                     / timing_s["direct"])
-
+def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: dict,
+             paper: dict) -> dict:
+    """What ``morphing.json`` holds: responses, node errors, Table 1, Table 2, the design,
+    the settings, the run's diagnostics and the paper's numbers."""
+    res = sens.result
+    final = res.node_positions(body, -1)
     rot = np.real(res.node_rotations(body)[-1])
     seg0 = np.sqrt(np.sum(np.diff(np.real(res.node_positions(body)[0]), axis=0) ** 2, axis=1))
     seg1 = np.sqrt(np.sum(np.diff(np.real(final), axis=0) ** 2, axis=1))
@@ -134,20 +156,20 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     }
     if "max_error" in sens.gradients:
         summary["sensitivities"]["max_error_mm"] = dict(sens.gradients["max_error"])
+    return summary
 
-    report = _report(summary, names, units, paper, notes)
-    study = StudyResult(summary=summary, sensitivity=sens, node_errors=e_k,
-                        node_error_gradients=de_k, stress_gradients=dsig, report=report)
-    if out is not None:
-        outp = pathlib.Path(out)
-        outp.mkdir(parents=True, exist_ok=True)
-        if figures:
-            study.figures = _figures(study, res, body, target, undeformed, names, units, outp)
-        tmp = outp / "morphing.json.tmp"
-        tmp.write_text(json.dumps(summary, indent=2), encoding="utf-8")
-        os.replace(tmp, outp / "morphing.json")
-        (outp / "report.txt").write_text(report + "\n", encoding="utf-8")
-    return study
+
+def _write(study: StudyResult, out, figures: bool, res, body, target, undeformed, names,
+           units) -> None:
+    """Figures, ``morphing.json`` (written atomically) and ``report.txt`` into ``out``."""
+    outp = pathlib.Path(out)
+    outp.mkdir(parents=True, exist_ok=True)
+    if figures:
+        study.figures = _figures(study, res, body, target, undeformed, names, units, outp)
+    tmp = outp / "morphing.json.tmp"
+    tmp.write_text(json.dumps(study.summary, indent=2), encoding="utf-8")
+    os.replace(tmp, outp / "morphing.json")
+    (outp / "report.txt").write_text(study.report + "\n", encoding="utf-8")
 
 
 def _report(s: dict, names, units, paper, notes) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from pathlib import Path
 
@@ -239,14 +240,37 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
 
 
 # --------------------------------------------------------------------------- motion
-def _outlines(result):
-    """Per body: (name, xy (n_t, k, 2), closed, is_beam) drawn as a polyline at each time."""
+def _magnified(result, factor: float):
+    """``result`` with every beam's nodal deformation (the coordinates relative to its body
+    frame) multiplied by ``factor``: the frames move as computed, the bending shows larger."""
+    if factor == 1.0 or result.q is None:
+        return result
+    q = np.array(result.q, copy=True)
+    for info in result.system.bodies.values():
+        if info.kind == "beam" and info.node_dofs is not None:
+            dofs = info.node_dofs[info.node_dofs >= 0]
+            q[:, dofs] *= factor
+    return dataclasses.replace(result, q=q, energy_cache=None)
+
+
+def _check_magnify(magnify) -> float:
+    if isinstance(magnify, bool) or not isinstance(magnify, (int, float, np.integer,
+                                                             np.floating)) \
+            or not np.isfinite(magnify) or magnify < 0:
+        raise ModelError(f"magnify must be a finite number >= 0 (1: true scale), got {magnify!r}")
+    return float(magnify)
+
+
+def _outlines(result, magnify: float = 1.0):
+    """Per body: (name, xy (n_t, k, 2), closed, is_beam) drawn as a polyline at each time;
+    beams with their deformation scaled by ``magnify`` relative to their frames."""
     m = result.system.model
     pts = _attachment_points(m)
     out = []
+    shown = _magnified(result, magnify)
     for b in m.bodies:
         if isinstance(b, Beam):
-            out.append((b.name, np.real(result.node_positions(b.name)), False, True))
+            out.append((b.name, np.real(shown.node_positions(b.name)), False, True))
             continue
         p = pts.get(b.name, [])
         if len(p) == 0:
@@ -292,7 +316,8 @@ def _check_target(target, outlines):
     return tgt
 
 
-def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None) -> Figure:
+def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
+              magnify: float = 1.0) -> Figure:
     """Configurations of a run at a few times (figure 5b of the paper).
 
     Parameters
@@ -309,6 +334,9 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None) -> F
         Target node positions of a beam, drawn dashed [length].
     units : dict, optional
         Overrides of :data:`DEFAULT_UNITS`.
+    magnify : float
+        Scale of the beams' deformation relative to their body frames (1: true scale; 0:
+        the frames' rigid motion only); the title says when it is not 1.
 
     Returns
     -------
@@ -326,7 +354,8 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None) -> F
     u = _units(units)
     _check_result(result)
     idx = _time_indices(result, times, n)
-    outlines = _outlines(result)
+    magnify = _check_magnify(magnify)
+    outlines = _outlines(result, magnify)
     tgt = _check_target(target, outlines)
     fig, ax = _new_axes(ax)
     t = np.real(result.t)
@@ -347,6 +376,8 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None) -> F
         g = np.array(g)
         ax.plot(g[:, 0], g[:, 1], "^", color="k", markersize=7, linestyle="none", gid="ground",
                 label="ground joints")
+    if magnify != 1.0:
+        ax.set_title(f"beam deformation magnified {magnify:g}x")
     if tgt is not None:
         ax.plot(tgt[:, 0], tgt[:, 1], "--", color="k", linewidth=1.2, gid="target",
                 label="target")
@@ -359,7 +390,8 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None) -> F
     return fig
 
 
-def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=None) -> Path:
+def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=None,
+            magnify: float = 1.0) -> Path:
     """Write the motion of a run as an animated GIF.
 
     Parameters
@@ -377,6 +409,9 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
         Resolution of the frames (the figure is 5 x 4 inches).
     units : dict, optional
         Overrides of :data:`DEFAULT_UNITS`.
+    magnify : float
+        Scale of the beams' deformation relative to their body frames (as in
+        :func:`snapshots`).
 
     Returns
     -------
@@ -399,7 +434,7 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
         raise ModelError(f"n_frames must be a positive integer, got {n_frames!r}")
     if not (np.isfinite(fps) and fps > 0):
         raise ModelError(f"fps must be positive, got {fps!r}")
-    outlines = _outlines(result)
+    outlines = _outlines(result, _check_magnify(magnify))
     tgt = _check_target(target, outlines)
     t = np.real(result.t)
     idx = _time_indices(result, None, int(n_frames))
@@ -435,7 +470,8 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
             for ln, (_, xy, closed, _) in zip(lines, outlines):
                 P = np.vstack([xy[k], xy[k][:1]]) if closed else xy[k]
                 ln.set_data(P[:, 0], P[:, 1])
-            title.set_text(f"t = {t[k]:.4g} {u['time']}")
+            title.set_text(f"t = {t[k]:.4g} {u['time']}" + (
+                f", deformation x{magnify:g}" if magnify != 1.0 else ""))
             writer.grab_frame()
     return path
 

@@ -83,25 +83,51 @@ def response_vjp(name: str, fn, result) -> ResponseVJP:
 
 
 # ------------------------------------------------------------- derivatives of the accessors
+class StressMap:
+    """The stress of one beam as a linear map of ``q``, evaluated over chunks of times (so a
+    long run of a fine beam never holds its whole stress history) and transposed for
+    gradients. ``times`` (k,): the time indices read."""
+
+    def __init__(self, result, body: str, times, chunk: int = 256):
+        system = result.system
+        info = system.body(body)
+        self.result, self.times, self.chunk = result, np.asarray(times), chunk
+        self.ed = system.elem_dofs[info.elements]
+        self.keep = self.ed >= 0
+        self.B = np.real(system.elem_B[info.elements]).reshape(-1, 4, 6)
+        self.n_dof = system.n_dof
+
+    def _local(self, k0: int, k1: int) -> np.ndarray:
+        """Element coordinates at times ``times[k0:k1]``, (k, n_e, 6) (zero where removed)."""
+        q = np.real(self.result.q[self.times[k0:k1]])
+        return np.where(self.keep, q[:, np.maximum(self.ed, 0)], 0.0)
+
+    def chunks(self):
+        """``(k0, k1, stress (k, n_e, 4), local coordinates (k, n_e, 6))`` over the times."""
+        for k0 in range(0, self.times.size, self.chunk):
+            k1 = min(k0 + self.chunk, self.times.size)
+            qe = self._local(k0, k1)
+            yield k0, k1, np.einsum("enj,kej->ken", self.B, qe), qe
+
+    def q_gradient(self, G: np.ndarray) -> np.ndarray:
+        """``d sum(G * stress_k) / dq_k`` (n_dof,) of one time, ``G`` (n_e, 4)."""
+        local = np.einsum("en,enj->ej", G, self.B)
+        dq = np.zeros(self.n_dof)
+        np.add.at(dq, self.ed[self.keep], local[self.keep])
+        return dq
+
+
 def stress_vjp(result, body: str, G: np.ndarray, times) -> tuple[np.ndarray, np.ndarray]:
     """Derivatives of ``sum(G * result.stress(body)[times])``: with respect to ``q`` at each
     of ``times`` ((len(times), n_dof)) and to the stress maps ``elem_B`` of the beam's
     elements ((n_elem, 2, 2, 6)). ``G`` (len(times), n_elem, 2, 2)."""
-    system = result.system
-    info = system.body(body)
-    sl = info.elements
-    ed = system.elem_dofs[sl]
-    B = np.real(system.elem_B[sl]).reshape(-1, 4, 6)
-    Gr = np.real(G).reshape(G.shape[0], -1, 4)  # (k, n_e, 4)
-    gq_local = np.einsum("ken,enj->kej", Gr, B)  # (k, n_e, 6)
-    dq = np.zeros((G.shape[0], system.n_dof))
-    keep = ed >= 0
-    for j in range(6):
-        rows = np.flatnonzero(keep[:, j])
-        np.add.at(dq, (slice(None), ed[rows, j]), gq_local[:, rows, j])
-    qe = np.where(keep, np.real(result.q[times])[:, np.maximum(ed, 0)], 0.0)  # (k, n_e, 6)
-    dB = np.einsum("ken,kej->enj", Gr, qe).reshape(B.shape[0], 2, 2, 6)
-    return dq, dB
+    smap = StressMap(result, body, times)
+    Gr = np.real(G).reshape(G.shape[0], -1, 4)
+    dq = np.stack([smap.q_gradient(g) for g in Gr]) if len(Gr) else np.zeros((0, smap.n_dof))
+    dB = np.zeros(smap.B.shape)
+    for k0, k1, _, qe in smap.chunks():
+        dB += np.einsum("ken,kej->enj", Gr[k0:k1], qe)
+    return dq, dB.reshape(-1, 2, 2, 6)
 
 
 def node_positions_vjp(result, body: str, time_index: int, G: np.ndarray):

@@ -39,6 +39,9 @@ class Result:
         ``"failed"`` or ``"interrupted"``, and a readable sentence.
     findings : list of Finding
         What the run's own checks found doubtful (:mod:`morphlab.results.checks`).
+    analysis : str
+        ``"dynamic"`` (:func:`morphlab.simulate`) or ``"static"`` (:func:`morphlab.static`: an
+        equilibrium path, ``t`` the load parameter).
     """
 
     system: System
@@ -62,6 +65,22 @@ class Result:
     newton_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
     newton_log_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64),
                                            repr=False)
+    analysis: str = "dynamic"
+
+    def __repr__(self) -> str:
+        """A few lines for a notebook: run, status, sizes, key figures (not the arrays)."""
+        s = self.system
+        kept = " ".join(k for k in ("q", "v", "a", "lam") if getattr(self, k) is not None)
+        t = self.t
+        span = f"t {t[0]:.4g}..{t[-1]:.4g}" if t.size else "no steps"
+        what = "static equilibrium path" if self.analysis == "static" else "simulation"
+        phi = (f", max |Phi| {self.constraint_violation.max():.3g}"
+               if self.constraint_violation.size else "")
+        msg = self.message if len(self.message) <= 120 else self.message[:117] + "..."
+        return (f"<Result {what} of {getattr(s.model, 'name', '?')!r}: {self.status} "
+                f"({msg}); {self.n_t} times, {span}; n_dof {s.n_dof}, n_con {s.n_con}; "
+                f"histories {kept or 'none'} {(self.n_t, s.n_dof)}{phi}; "
+                f"{len(self.findings)} findings; wall {self.wall_time:.3g} s>")
 
     @property
     def newton_history(self) -> list:
@@ -127,6 +146,21 @@ class Result:
         _, th = self.reference(body)
         return th[:, None] - info.angle0 + w[:, :, 2]
 
+    def chord_deflection(self, body: str) -> np.ndarray:
+        """Transverse deflection of every node of a beam from the straight line (chord)
+        through its two end nodes, at every time, (n_t, n_nodes) [length units].
+
+        Positive to the left of the chord's direction (first node towards last). An initially
+        curved beam has a nonzero value at ``t[0]``; subtract it for the change. The chord
+        moves with the beam, so rigid motion of the whole beam gives no deflection.
+        Complex-safe (a response may use it).
+        """
+        P = self.node_positions(body)
+        d = P[:, -1, :] - P[:, 0, :]
+        length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        r = P - P[:, :1, :]
+        return (d[:, None, 0] * r[:, :, 1] - d[:, None, 1] * r[:, :, 0]) / length[:, None]
+
     def deformation(self, body: str) -> np.ndarray:
         """Nodal deformation ``(u, v, phi)`` of a beam in its body frame, (n_t, n_nodes, 3)."""
         return self._nodal(body, self.q)[1]
@@ -181,13 +215,29 @@ class Result:
         return self.energy_cache
 
     def summary(self) -> str:
-        """One paragraph with the run's statistics."""
+        """One paragraph with the run's statistics. Numbers are in the model's own units
+        (``model.units`` when the model names them, else "model units")."""
+        units = getattr(self.system.model, "units", None)
+        where = f"in {units}" if units else "in model units"
         it = self.newton_iterations[1:]
-        return (f"{self.status}: {self.message}; {self.n_t - 1} steps of {self.settings.h:.3g} s, "
-                f"Newton iterations per step {it.mean() if it.size else 0:.2f} "
-                f"(max {it.max() if it.size else 0}), {self.n_factorizations} factorizations, "
-                f"max |Phi| {self.constraint_violation.max():.3g}, "
-                f"max |Phi'| {self.velocity_violation.max():.3g}, wall {self.wall_time:.3g} s")
+        newton = (f"Newton iterations per step {it.mean() if it.size else 0:.2f} "
+                  f"(max {it.max() if it.size else 0}), {self.n_factorizations} factorizations")
+        phi = self.constraint_violation.max() if self.constraint_violation.size else 0.0
+        if self.analysis == "static":
+            steps = self.n_t - 1
+            head = (f"static equilibrium path of {steps} load step{'s' if steps != 1 else ''} "
+                    f"up to t={self.t[-1]:.6g} (loads and drives taken at t)" if self.n_t
+                    else "static equilibrium: no step")
+            stats = f"{newton}, max |Phi| {phi:.3g}"
+        else:
+            head = f"{self.n_t - 1} steps of {self.settings.h:.3g} (time unit of the model)"
+            stats = (f"{newton}, max |Phi| {phi:.3g}, max |Phi'| "
+                     f"{self.velocity_violation.max() if self.velocity_violation.size else 0:.3g}")
+        checks = "".join(f"; check {f.check} at {f.where}: {f.message}"
+                         for f in self.findings[:3])
+        more = f"; {len(self.findings) - 3} more findings" if len(self.findings) > 3 else ""
+        return (f"{self.status}: {self.message}; {head}, {stats} ({where}), "
+                f"wall {self.wall_time:.3g} s{checks}{more}")
 
 
 def energy(res: Result) -> dict:

@@ -33,13 +33,8 @@ import numpy as np
 
 from ..compile import System
 from ..compile.system import table_at
-from ..kernels.adjoint import adjoint_block
-from ..kernels.direct import (
-    csc_residual_transposed,
-    csc_transposed_product,
-    explicit_block,
-    split_matrices,
-)
+from ..kernels.adjoint import adjoint_block, explicit_adjoint_block
+from ..kernels.direct import csc_residual_transposed, csc_transposed_product, split_matrices
 from ..results.gradients import ResponseVJP, response_vjp, system_data
 from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
@@ -54,13 +49,16 @@ def _state_bytes(st) -> int:
 
 class _Recorder:
     """Forward observer: keeps every converged step — ``(n, state, factorization, last Newton
-    correction, coefficients)`` — while they fit ``budget`` bytes. Beyond it the run keeps
-    only checkpoints, the state after every ``K``-th step (``K`` chosen so that one segment of
-    ``K`` recomputed steps takes half the budget), and the backward sweep recomputes the
-    steps of each segment from its checkpoint (:func:`_segments`)."""
+    correction, coefficients)`` — while they fit ``budget`` bytes. When they would not (known
+    after the first steps from the bytes per step and the number of steps, or found when the
+    kept steps exceed the budget) the run keeps only checkpoints, the state after every
+    ``K``-th step (``K`` chosen so that one segment of ``K`` recomputed steps takes half the
+    budget), and the backward sweep recomputes the steps of each segment from its checkpoint
+    (:func:`_segments`), in compiled blocks whose stacked factors take ~1/8 of the budget."""
 
-    def __init__(self, budget: int):
-        self.budget = budget
+    def __init__(self, budget: int, n_steps: int):
+        self.budget, self.n_steps = budget, n_steps
+        self.per_step = 0.0
         self.steps: list = []
         self.bytes = 0
         self.K: int | None = None
@@ -77,8 +75,12 @@ class _Recorder:
             return
         self.steps.append((info.n, info.state, info.lu, last, info.coef))
         self.bytes += _state_bytes(info.state) + info.lu.nbytes + 500
-        if self.bytes > self.budget:  # from now on: checkpoints
-            self.K = max(1, int(self.budget // (2 * self.bytes / len(self.steps))))
+        self.per_step = self.bytes / len(self.steps)
+        # checkpoints from now on: when the kept steps exceed the budget, or (from the first
+        # steps on) when the whole run would, so that the budget is never filled and dropped
+        projected = info.n > 2 and self.per_step * (self.n_steps + 1) > self.budget
+        if self.bytes > self.budget or projected:
+            self.K = max(1, int(self.budget // (2 * self.per_step)))
             self.checkpoints = {n: st for n, st, *_ in self.steps if n % self.K == 0}
             self.steps = []
 
@@ -115,20 +117,17 @@ def _segments(rec: _Recorder, settings: Settings, q0, v0):
         yield steps, prev
 
 
-def _explicit(sys0: System, stp, data: PseudoLoadData, step, prev) -> np.ndarray:
-    """``-∂R_n/∂p`` (n, n_x) of ``step = (n, state, ...)`` at its converged state (both
-    levels; ``prev`` the state before it): the explicit part of the direct method's
-    right-hand side."""
-    n, st, _, _, coef = step
-    old = (st.q, st.v, np.zeros(sys0.n_dof), np.zeros(sys0.n_con)) if prev is None else (
-        prev.q, prev.v, prev.a, prev.lam)
-    Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
-    E = np.zeros((1, sys0.n, data.dq0.shape[1]))
-    explicit_block(data.S_nom, data.P, data.parts, Q, V, A, L, coef.arrays.w_new,
-                   coef.old is not None, coef.arrays.w_old, stp.scale, stp.b0, stp.b1,
-                   data.TAB, data.tab0, np.array([max(n - 1, 0)]), np.array([n]), sys0.n_dof,
-                   data.pert, np.zeros((2, sys0.n), dtype=data.dtype), E)
-    return E[0]
+def _design_share(sys0: System, stp, data: PseudoLoadData, Q, V, A, L, coef, k_new, MU,
+                  grad) -> None:
+    """``grad -= sum_j (dR_j/dp)^T MU[j]`` over steps with states ``(Q, V, A, L)[j + 1]``
+    (``[0]`` the state before them), coefficients ``coef`` and time indices ``k_new``
+    (:func:`~morphlab.kernels.adjoint.explicit_adjoint_block`)."""
+    work = np.zeros((2, sys0.n), dtype=data.dtype)
+    explicit_adjoint_block(data.S_nom, data.P, data.parts, data.touched, Q, V, A, L,
+                           coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
+                           stp.scale, stp.b0, stp.b1, data.TAB, data.tab0,
+                           np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, work,
+                           np.ascontiguousarray(MU), grad)
 
 
 def _split(stp, st, w, F, n_dof):
@@ -153,8 +152,10 @@ class _Sweep:
     responses' own data terms."""
 
     def __init__(self, sys0: System, stp, vjps: list[ResponseVJP], data: PseudoLoadData,
-                 refine: int, refine_tol: float, F, stats: dict):
+                 refine: int, refine_tol: float, F, stats: dict, block_bytes: float = np.inf,
+                 step_bytes: float = 1.0):
         self.sys0, self.stp, self.vjps, self.data, self.F = sys0, stp, vjps, data, F
+        self.block_bytes, self.step_bytes = block_bytes, step_bytes
         self.refine, self.refine_tol, self.stats = refine, refine_tol, stats
         n_dof, n_con, m = sys0.n_dof, sys0.n_con, len(vjps)
         self.bar = {k: np.zeros((w, m)) for k, w in (("q", n_dof), ("v", n_dof),
@@ -174,8 +175,11 @@ class _Sweep:
             if group is None:
                 for j in range(end - 1, start - 1, -1):
                     self.step(steps[j], steps[j - 1][1] if j > 0 else prev)
-            else:
-                self._block(steps, start, end, steps[start - 1][1] if start > 0 else prev)
+            else:  # sub-blocks whose stacked copies of the factors take ~1/8 of the budget
+                size = max(1, int(self.block_bytes // max(self.step_bytes, 1.0)))
+                for j1 in range(end, start, -size):
+                    j0 = max(start, j1 - size)
+                    self._block(steps, j0, j1, steps[j0 - 1][1] if j0 > 0 else prev)
             end = start
 
     def _block(self, steps: list, j0: int, j1: int, prev) -> None:
@@ -204,13 +208,7 @@ class _Sweep:
             np.zeros(nnz, dtype=np.complex128), np.zeros(nnz),
             *stacked_arrays([b[2] for b in block]), refine, self.refine, MU, refined)
         self.stats["refinement_residual"] += refined[refine].tolist()
-        E = np.zeros((K, sys0.n, self.grad.shape[0]))
-        explicit_block(self.data.S_nom, self.data.P, self.data.parts, Q, V, A, L,
-                       coef.arrays.w_new, coef.old is not None, coef.arrays.w_old, stp.scale,
-                       stp.b0, stp.b1, self.data.TAB, self.data.tab0,
-                       np.maximum(k_new - 1, 0), k_new, sys0.n_dof, self.data.pert,
-                       np.zeros((2, sys0.n), dtype=self.data.dtype), E)
-        self.grad += np.einsum("jnx,jnm->xm", E, MU)
+        _design_share(sys0, stp, self.data, Q, V, A, L, coef, k_new, MU, self.grad)
         if initial >= 0:
             self.grad += self.data.dq0.T @ bar["q"] + self.data.dv0.T @ bar["v"]
 
@@ -247,7 +245,11 @@ class _Sweep:
             mu = self._refined(mu, zb, D0 + bh2 * Dq + gh * Dv, lu)
         qhb = bar["q"] + _tproduct(sys0, Dq, mu, n_dof)
         vhb = bar["v"] + _tproduct(sys0, Dv, mu, n_dof)
-        self.grad += _explicit(sys0, stp, self.data, step, prev).T @ mu
+        old = (st.q, st.v, np.zeros(n_dof), np.zeros(n_con)) if prev is None else (
+            prev.q, prev.v, prev.a, prev.lam)
+        Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
+        _design_share(sys0, stp, self.data, Q, V, A, L, coef, np.array([n]), mu[None],
+                      self.grad)
         if n == 0:
             self.grad += self.data.dq0.T @ qhb + self.data.dv0.T @ vhb
             return
@@ -299,7 +301,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_syste
     only the histories the responses read. Returns ``(result, values, gradients, timing,
     stats)`` with ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the complex
     systems' variables."""
-    rec = _Recorder(memory)
+    rec = _Recorder(memory, settings.n_steps)
     t0 = _time.perf_counter()
     kept = to_store("auto", responses, sys0, settings)
     res0 = integrate(sys0, settings, observer=rec, progress=progress, store=kept)
@@ -308,7 +310,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_syste
     vjps = [response_vjp(k, responses[k], res0) for k in names]
     stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations,
              "segment_steps": rec.K}
-    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats)
+    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats,
+                   block_bytes=memory / 8, step_bytes=rec.per_step)
     for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
         sweep.segment(steps, prev)
     grad = sweep.grad + _data_terms(vjps, sys0, complex_systems)

@@ -59,7 +59,7 @@ from .perturb import CS_STEP, call_build, complex_systems, relative_steps
 from .strategies import Auto, Setup, resolve
 
 
-@dataclass
+@dataclass(repr=False)
 class SensitivityResult:
     """Values and gradients of responses, with the histories behind them.
 
@@ -83,6 +83,8 @@ class SensitivityResult:
         Wall seconds: ``"primal"``, ``"sensitivity"`` (the extra work) and ``"total"``.
     stats : dict
         Factorizations, refinement residuals and other diagnostics.
+    design : dict[str, float]
+        The nominal design ``p0`` the sensitivities were taken at.
     """
 
     method: str
@@ -93,9 +95,24 @@ class SensitivityResult:
     state: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    design: dict = field(default_factory=dict)
     _perturbed: list = field(default_factory=list, repr=False)
     _steps: dict = field(default_factory=dict, repr=False)
     _strategy: object = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        """A few lines for a notebook: method, design, values, sizes (not the histories)."""
+        def short(d: dict, k=6) -> str:
+            items = [f"{n}: {float(np.real(v)):.4g}" for n, v in list(d.items())[:k]]
+            return "{" + ", ".join(items) + (", ..." if len(d) > k else "") + "}"
+
+        kept = ", ".join(f"{k} {tuple(np.shape(v))}" for k, v in self.state.items())
+        r = self.result
+        total = self.timing.get("total")
+        return (f"<SensitivityResult {self.method!r}: {len(self.values)} responses x "
+                f"{len(self.variables)} variables; design {short(self.design)}; values "
+                f"{short(self.values)}; kept histories {kept or 'none'}; primal {r.status}, "
+                f"{r.n_t} times" + (f"; total {total:.3g} s>" if total is not None else ">"))
 
     def derivative(self, fn: Callable[[Result], np.ndarray]) -> np.ndarray:
         """``d fn(result) / d p`` for any complex-safe accessor ``fn`` (e.g. ``lambda r:
@@ -236,7 +253,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     t_resp = _time.perf_counter()
     out = SensitivityResult(method=strategy.name, variables=names, result=run.result, values={},
                             gradients={}, state=run.state, timing=run.timing, stats=run.stats,
-                            _perturbed=run.perturbed, _steps=steps, _strategy=strategy)
+                            design=dict(p0), _perturbed=run.perturbed, _steps=steps,
+                            _strategy=strategy)
     out.values, out.gradients = _differentiate(strategy, responses, run, names, steps, out)
     run.timing["responses"] = _time.perf_counter() - t_resp
     run.timing["total"] = _time.perf_counter() - t_start

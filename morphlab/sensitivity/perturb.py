@@ -157,6 +157,7 @@ class PseudoLoadData(NamedTuple):
     dtype: np.dtype
     dq0: np.ndarray
     dv0: np.ndarray
+    touched: tuple
 
 
 def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
@@ -171,8 +172,12 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     shared: dict = {}
     tab0 = time_table(sys0, times, dt, cache=shared)
     tables = [time_table(s, times, dt, cache=shared) for s in psys]
-    parts = pack_parts([variable_parts(sys0, S_nom, Sk, tab0, tb)
-                        for Sk, tb in zip(S_all, tables)])
+    each = [variable_parts(sys0, S_nom, Sk, tab0, tb) for Sk, tb in zip(S_all, tables)]
+    parts = pack_parts(each)
+    rows = [touched_rows(sys0, p) for p in each]
+    off = np.zeros(len(rows) + 1, dtype=np.int64)
+    off[1:] = np.cumsum([len(r) for r in rows])
+    touched = (off, np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64))
     TAB = TimeTable(*(np.ascontiguousarray(np.stack([tb[k] for tb in tables], axis=1))
                       for k in range(5)))
     if complex_step:
@@ -181,7 +186,7 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     else:
         dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
         dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
-    return PseudoLoadData(S_nom, P, parts, TAB, tab0, pert, dt, dq0, dv0)
+    return PseudoLoadData(S_nom, P, parts, TAB, tab0, pert, dt, dq0, dv0, touched)
 
 
 def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
@@ -227,6 +232,20 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
     torques = _changed(tabi.T, tab0.T, 1)
     return tuple(np.flatnonzero(m).astype(np.int64)
                  for m in (body, elem, flex, rows, loads, torques))
+
+
+def touched_rows(sys0: System, parts: tuple) -> np.ndarray:
+    """The residual rows a residual over ``parts`` (of :func:`variable_parts`) can change,
+    sorted: the reference rows of its bodies and the rows of its flexible coordinates (the
+    body kernel masks the others), each constraint row with the coordinates of both its sides
+    (the multiplier term), the coordinates of its point loads and torques."""
+    bodies, _, flex, rows, loads, torques = parts
+    n_dof = sys0.n_dof
+    pieces = [sys0.body_ref[bodies].ravel(), sys0.flex_dof[flex], n_dof + rows,
+              sys0.con_dofs[rows].ravel(), sys0.load_dofs[loads].ravel(),
+              sys0.torque_dofs[torques].ravel()]
+    out = np.unique(np.concatenate([np.asarray(x, dtype=np.int64) for x in pieces]))
+    return out[out >= 0]
 
 
 def pack_parts(parts: list) -> tuple:

@@ -83,7 +83,8 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
                       newton_iterations=iters[sl].copy(), constraint_violation=viol,
                       velocity_violation=np.zeros(k + 1), status=status, message=message,
                       n_factorizations=stp.n_factorizations,
-                      wall_time=_time.perf_counter() - t_wall, scale=stp.scale)
+                      wall_time=_time.perf_counter() - t_wall, scale=stp.scale,
+                      analysis="static")
 
     for k in range(1, len(times)):
         try:

@@ -1,0 +1,68 @@
+"""Consistent initial velocities from the drives and constraints at ``t = 0``.
+
+A drive whose angle has a nonzero rate at ``t = 0`` (a drive by speed, or ``Linear``) asks for
+moving bodies from the start. When the model gives no initial velocity at all, the velocities
+are the solution of the velocity-level constraints ``Phi_q q' = -Phi_t`` of least kinetic
+energy: the saddle-point system
+
+    [ M    Phi_q^T ] [ q' ]   [    0   ]
+    [ Phi_q   0    ] [ mu ] = [ -Phi_t ]
+
+(``docs/theory.md``: the constraint rows are those of the step matrix, eq. 30-33, weighted for
+``a``). The unknowns are first the reference coordinates of the bodies only (the frames move as
+rigid bodies, the beams start undeformed in rate), which is exactly solvable whenever the
+constraints allow a rigid motion; otherwise every coordinate takes part. The solve is linear
+algebra on the system's arrays, so a complex-step perturbation of a drive's speed or of the
+geometry carries through to ``v0`` (the initial sensitivities ``dv0`` of a sensitivity run).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..kernels import assemble as kassemble
+
+# weights of the step-matrix kernel for [M J^T; J 0]: inertia, multipliers, constraint rows
+_SADDLE_WEIGHTS = np.array([1.0, 1.0, 0.0, 1.0, 0.0])
+
+
+def needs_initial_velocities(system) -> bool:
+    """No initial velocity given anywhere, but a drive moving at ``t = 0`` (``Phi_t != 0``)."""
+    if system.n_con == 0 or np.any(system.v0 != 0):
+        return False
+    _, phid = system.constraint_violation(system.q0, np.zeros_like(system.q0), 0.0)
+    return bool(np.any(phid != 0))
+
+
+def _saddle_matrix(system) -> sp.csc_matrix:
+    from .system import kernel_arrays
+
+    dt = system.dtype
+    n = system.n
+    data = np.zeros(system.nnz, dtype=dt)
+    zero = np.zeros(system.n_dof, dtype=dt)
+    kassemble.step_matrix(kernel_arrays(system, dt), np.zeros(n, dtype=dt), system.q0, zero,
+                          0.0, 0.0, 1.0, _SADDLE_WEIGHTS, 0.0, 0.0,
+                          np.zeros((system.load_dofs.shape[0], 2), dtype=dt), data)
+    return sp.csc_matrix((data, system.indices, system.indptr), shape=(n, n))
+
+
+def initial_velocities(system) -> np.ndarray:
+    """Velocities ``(n_dof,)`` of least kinetic energy satisfying the velocity-level
+    constraints at ``t = 0`` (see the module docstring); same dtype as the system."""
+    n_dof = system.n_dof
+    _, phid = system.constraint_violation(system.q0, np.zeros_like(system.q0), 0.0)
+    A = _saddle_matrix(system)
+    rhs = np.concatenate([np.zeros(n_dof, dtype=system.dtype), -phid])
+    ref = np.sort(system.body_ref.reshape(-1))
+    J_ref = A[n_dof:, :][:, ref].toarray()
+    # the rank is decided on real parts: a complex-step perturbation takes the same branch
+    if np.linalg.matrix_rank(np.real(J_ref)) == system.n_con:
+        keep = np.concatenate([ref, n_dof + np.arange(system.n_con)])
+        z = np.linalg.solve(A[keep, :][:, keep].toarray(), rhs[keep])
+        v = np.zeros(n_dof, dtype=system.dtype)
+        v[ref] = z[: ref.size]
+        return v
+    return spla.spsolve(A.tocsc(), rhs)[:n_dof].astype(system.dtype)
