@@ -20,6 +20,7 @@ from .errors import (
     SensitivityError,
     SingularMatrixError,
     SolverError,
+    StudyError,
 )
 from .model.model import Beam, Model, RigidBody
 from .model.profiles import (
@@ -64,6 +65,7 @@ __all__ = [
     "Profile",
     "ProfileError", "Ramp", "ResourceError", "ResponseError", "Result", "RigidBody",
     "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
-    "SmoothStep", "SolverError", "State", "System", "airfoil", "compile_model", "io", "morphing",
-    "plots", "responses", "sensitivities", "simulate", "static", "studies", "warmup", "__version__",
+    "SmoothStep", "SolverError", "State", "StudyError", "System", "airfoil", "compile_model", "io",
+    "morphing", "plots", "responses", "sensitivities", "simulate", "static", "studies", "warmup",
+    "__version__",
 ]

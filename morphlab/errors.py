@@ -110,6 +110,12 @@ class Interrupted(KeyboardInterrupt):
         self.result = result
 
 
+class StudyError(MorphlabError, ValueError):
+    """A study cannot run as asked: a design table that is not a table of finite real numbers,
+    a task that cannot travel to a worker process, an unknown executor or setting, a sampler
+    size the sequence does not support. The message names the item and what is valid."""
+
+
 class ResourceError(MorphlabError, MemoryError):
     """A run needs more memory than the machine has available (the message says how much and
     what to change)."""

@@ -2,12 +2,14 @@
 
 Stages in data-flow order (import order):
 
-    kernels < errors < model < compile < results < solve < sensitivity < plots, io, archive
-            < studies < warmup < morphing < bench, cli
+    kernels < errors < model < compile < results < solve < sensitivity < warmup
+            < plots, io, archive < studies < morphing < bench, cli
 
 ``results`` comes before ``solve`` because the solver fills a Result. ``bench`` and
 ``morphing`` (the benchmark tools and the paper's application) are imported by no core
-module. Every import is read from the source with ``ast``, those inside functions included.
+module. ``warmup`` compiles the kernels through the solver and the sensitivities only, so
+the studies can warm up each worker process of a sweep. Every import is read from the
+source with ``ast``, those inside functions included.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-STAGES = ["kernels", "errors", "model", "compile", "results", "solve", "sensitivity",
-          ("plots", "io", "archive"), "studies", "warmup", "morphing", ("bench", "cli")]
+STAGES = ["kernels", "errors", "model", "compile", "results", "solve", "sensitivity", "warmup",
+          ("plots", "io", "archive"), "studies", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
     for name in (stage if isinstance(stage, tuple) else (stage,)):

@@ -127,4 +127,8 @@ def table(results: dict) -> str:
         lines += ["", x.get("notes", ""), ""]
     elif x:
         lines += ["### Exudyn", "", x.get("skipped", json.dumps(x)), ""]
+    if results["cases"].get("sweep"):
+        from .sweeps import rows
+
+        lines += rows(results["cases"]["sweep"])
     return "\n".join(lines)

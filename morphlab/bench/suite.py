@@ -21,6 +21,8 @@ shared and noisy). Cases:
 ``floor``      the compiled kernels of one morphing step timed alone, and the least
                direct / primal they allow (no Python, set-up or responses counted).
 ``exudyn``     the same flexible pendulum in Exudyn (optional extra ``bench``), if installed.
+``sweep``      parameter studies: morphing designs/s serial, local pool, Dask LocalCluster
+               (if installed), the speed-ups, and the overhead per job (:mod:`.sweeps`).
 
 Results go to a JSON file and Markdown tables (:mod:`morphlab.bench_report`; ``BENCHMARKS.md``
 holds the latest).
@@ -375,10 +377,15 @@ def case_exudyn(repeats: int, quick: bool) -> dict:
     return _bench_exudyn.run(repeats, quick)
 
 
+def case_sweep(repeats: int, quick: bool) -> dict:
+    from . import sweeps
+
+    return sweeps.run(repeats, quick)
+
+
 CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
          "variables": case_variables, "memory": case_memory, "profile": case_profile,
-         "floor": case_floor,
-         "exudyn": case_exudyn}
+         "floor": case_floor, "exudyn": case_exudyn, "sweep": case_sweep}
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,247 @@
+"""What a sweep runs in a worker: the task, the batch job around it, and the executors.
+
+A task is either a :class:`SimulationTask` (a parametric model, its responses and the run's
+settings, optionally with gradients) or any function ``p -> dict`` of response values. It
+travels to the workers as bytes: serialized with cloudpickle when that is installed (so
+closures and functions defined in a notebook work), with plain pickle otherwise, checked up
+front. A job is one batch of designs; every design's exception becomes its row's error text,
+so one bad design never costs its neighbours.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import inspect
+import os
+import pickle
+import threading
+import time
+from collections.abc import Callable, Mapping
+
+from ..errors import SolverError, StudyError
+from ..sensitivity.api import sensitivities
+from ..solve.settings import Settings
+from ..solve.timeloop import simulate
+from ..warmup import warmup
+from .sweep_result import FAILED, OK
+
+# Keyword arguments a task sets itself (or that make no sense in a worker).
+_RESERVED = {"model", "build", "p0", "responses", "variables", "method", "settings",
+             "progress", "observer", "memmap"}
+
+
+def _allowed(gradients) -> set[str]:
+    fn = sensitivities if gradients else simulate
+    params = inspect.signature(fn).parameters
+    own = {k for k, p in params.items() if p.kind is p.KEYWORD_ONLY}
+    return (own | {f.name for f in Settings.__dataclass_fields__.values()}) - _RESERVED
+
+
+class SimulationTask:
+    """One design -> the responses of one run of ``build(p)`` (and their gradients).
+
+    Parameters
+    ----------
+    build : callable
+        ``build(p) -> Model`` for a dict of design variables (as for
+        :func:`morphlab.sensitivities`).
+    responses : dict of str -> callable
+        ``f(result) -> float`` (see :mod:`morphlab.responses`).
+    settings : dict or Settings
+        The run's keyword arguments: the fields of :class:`morphlab.Settings` (``t_end``,
+        ``dt`` [s], ...) and the other keyword options of :func:`morphlab.simulate` (or of
+        :func:`morphlab.sensitivities` with gradients), e.g. ``max_halvings``.
+    gradients : bool or list of str
+        ``False``: values only (:func:`morphlab.simulate`); ``True``: derivatives by every
+        design variable; a list: by these variables (:func:`morphlab.sensitivities`).
+    method : str or strategy
+        Sensitivity method (with gradients), as for :func:`morphlab.sensitivities`.
+
+    Raises
+    ------
+    StudyError
+        A build or response that is not callable, a setting neither function takes, a
+        setting value :class:`morphlab.Settings` refuses.
+    """
+
+    def __init__(self, build: Callable[[dict], object], responses: Mapping[str, Callable],
+                 settings: Mapping | Settings, *, gradients: bool | list[str] = False,
+                 method="direct"):
+        if not callable(build):
+            raise StudyError(f"build must be a function p -> Model, got {build!r}")
+        if not isinstance(responses, Mapping) or not responses:
+            raise StudyError("responses must be a non-empty dict of name -> f(result)")
+        bad = [k for k, f in responses.items() if not callable(f)]
+        if bad:
+            raise StudyError(f"responses {bad} are not callable")
+        if not isinstance(gradients, bool) and not (
+                isinstance(gradients, list | tuple) and all(isinstance(v, str) for v in gradients)):
+            raise StudyError(f"gradients must be True, False or a list of variable names, got "
+                             f"{gradients!r}")
+        self.build, self.responses, self.method = build, dict(responses), method
+        self.gradients = gradients if isinstance(gradients, bool) else list(gradients)
+        self.settings = self._checked(settings)
+
+    def _checked(self, settings) -> dict:
+        if isinstance(settings, Settings):
+            return {"settings": settings}
+        if not isinstance(settings, Mapping):
+            raise StudyError(f"settings must be a dict or a Settings, got {settings!r}")
+        allowed = _allowed(self.gradients)
+        unknown = sorted(set(settings) - allowed)
+        if unknown:
+            fn = "sensitivities" if self.gradients else "simulate"
+            raise StudyError(f"settings {unknown} are not options of morphlab.{fn}; valid: "
+                             f"{sorted(allowed)}")
+        fields = {k: v for k, v in settings.items() if k in Settings.__dataclass_fields__}
+        try:
+            Settings.of(**fields)
+        except Exception as exc:
+            raise StudyError(f"settings refused: {exc}") from exc
+        return dict(settings)
+
+    def evaluate(self, p: dict) -> tuple[dict, dict]:
+        """``(values, gradients)`` of the design ``p``: ``{r: float}``,
+        ``{r: {v: float}}`` (empty without gradients)."""
+        if not self.gradients:
+            result = simulate(self.build(p), **self.settings)
+            return {r: float(f(result)) for r, f in self.responses.items()}, {}
+        variables = None if self.gradients is True else self.gradients
+        sens = sensitivities(self.build, p, self.responses, method=self.method,
+                             variables=variables, **self.settings)
+        return dict(sens.values), {r: dict(g) for r, g in sens.gradients.items()}
+
+    def __call__(self, p: dict) -> dict:
+        """Response values of the design ``p`` (a task is also a plain function)."""
+        return self.evaluate(p)[0]
+
+    def __repr__(self) -> str:
+        grad = "" if not self.gradients else f", gradients={self.gradients!r}"
+        return f"SimulationTask({getattr(self.build, '__name__', self.build)!r}, " \
+               f"{list(self.responses)}{grad})"
+
+
+# ---------------------------------------------------------------------------- serialization
+def serialize(task) -> bytes:
+    """``task`` as bytes for the workers (cloudpickle if installed, else plain pickle)."""
+    if not callable(task):
+        raise StudyError(f"task must be a SimulationTask or a function p -> dict, got {task!r}")
+    try:
+        import cloudpickle
+    except ImportError:
+        cloudpickle = None
+    try:
+        return cloudpickle.dumps(task) if cloudpickle else pickle.dumps(task)
+    except Exception as exc:
+        hint = "" if cloudpickle else (" Plain pickle sends functions by name only: define the "
+                                       "task and its build and responses at module level, or "
+                                       "install cloudpickle (pip install 'morphlab[dask]')")
+        raise StudyError(f"the task cannot be sent to worker processes: "
+                         f"{type(exc).__name__}: {exc}.{hint}") from exc
+
+
+_WARM = False
+_WARM_LOCK = threading.Lock()
+_TASKS: dict[bytes, object] = {}
+
+
+def ensure_warm() -> None:
+    """Compile (or load) the kernels once per process, also with several threads."""
+    global _WARM
+    with _WARM_LOCK:
+        if not _WARM:
+            warmup()
+            _WARM = True
+
+
+def _task_of(payload):
+    if not isinstance(payload, bytes):  # in-process: the task itself
+        return payload
+    task = _TASKS.get(payload)
+    if task is None:
+        _TASKS.clear()
+        task = _TASKS[payload] = pickle.loads(payload)
+    return task
+
+
+def describe(exc: BaseException) -> str:
+    """A failed row's error text: type, message and, for a failed run, where it failed."""
+    text = f"{type(exc).__name__}: {exc}"
+    if isinstance(exc, SolverError) and (exc.time is not None or exc.step is not None):
+        text += f" [t={exc.time}, step={exc.step}]"
+    return text
+
+
+def _evaluate(task, p: dict) -> tuple[dict, dict]:
+    if isinstance(task, SimulationTask):
+        return task.evaluate(p)
+    out = task(p)
+    if not isinstance(out, Mapping):
+        raise StudyError(f"the task must return a dict of response -> number, got {out!r}")
+    return {str(k): float(v) for k, v in out.items()}, {}
+
+
+def run_batch(payload, batch: list[tuple[int, dict]]) -> list[tuple[int, dict]]:
+    """The worker job: ``(index, row)`` for every ``(index, design)`` of the batch."""
+    ensure_warm()
+    task = _task_of(payload)
+    rows = []
+    for index, p in batch:
+        start = time.perf_counter()
+        try:
+            values, gradients = _evaluate(task, p)
+            row = {"status": OK, "values": values, "gradients": gradients, "error": ""}
+        except Exception as exc:  # the design fails, its neighbours go on
+            row = {"status": FAILED, "values": {}, "gradients": {}, "error": describe(exc)}
+        row["wall_time"] = time.perf_counter() - start
+        rows.append((index, row))
+    return rows
+
+
+# -------------------------------------------------------------------------------- executors
+class SerialExecutor(cf.Executor):
+    """Runs each job at once in the calling process (``executor="serial"``)."""
+
+    _max_workers = 1
+
+    def submit(self, fn, /, *args, **kwargs):
+        future = cf.Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:
+            future.set_exception(exc)
+        return future
+
+
+def make_executor(executor) -> tuple[cf.Executor, bool]:
+    """``(executor, owned)``: a process pool of ``os.cpu_count()`` workers for ``None``, the
+    serial executor for ``"serial"``, any concurrent.futures Executor as given."""
+    if executor is None:
+        return cf.ProcessPoolExecutor(max_workers=os.cpu_count() or 1), True
+    if executor == "serial":
+        return SerialExecutor(), True
+    if isinstance(executor, cf.Executor):
+        return executor, False
+    raise StudyError(f"executor must be None (a local process pool), 'serial' or a "
+                     f"concurrent.futures.Executor (e.g. a Dask client.get_executor()), got "
+                     f"{executor!r}")
+
+
+def worker_count(executor) -> int:
+    """Jobs the executor runs at once: its processes, or a Dask cluster's threads."""
+    client = getattr(executor, "_client", None)
+    if client is not None and hasattr(client, "nthreads"):
+        return max(1, sum(client.nthreads().values()))
+    return max(1, int(getattr(executor, "_max_workers", None) or os.cpu_count() or 1))
+
+
+def in_process(executor) -> bool:
+    return isinstance(executor, SerialExecutor | cf.ThreadPoolExecutor)
+
+
+def lost_worker(exc: BaseException) -> bool:
+    """True for the errors of a job whose worker died: a broken process pool, a Dask
+    ``KilledWorker``, a cancelled job."""
+    names = {"KilledWorker", "CancelledError", "FutureCancelledError"}
+    return isinstance(exc, cf.BrokenExecutor | cf.CancelledError) or any(
+        t.__name__ in names for t in type(exc).__mro__)
