@@ -127,11 +127,15 @@ class Builder:
             return -np.ones(6, dtype=np.int64), np.zeros(2, dtype=self.dtype), 0.0
         return self.locate[body.name](at)
 
-    def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None):
+    def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None,
+                beta=0.0):
         """A constraint row ``g(q) - c(t) = 0`` of ``kind`` between the points ``pa`` and
-        ``pb`` (:meth:`point`), ``c = c0`` (+ ``profile(t)`` for a driven row)."""
+        ``pb`` (:meth:`point`), ``c = c0`` (+ ``profile(t)`` for a driven row); ``beta``: the
+        angle in ``pb``'s body frame of a slide row's normal (``kernels.joints``)."""
+        u0 = np.zeros((2, 3), dtype=self.dtype)
+        u0[0, :2], u0[1, :2], u0[1, 2] = pa[1], pb[1], beta
         for key, value in (("kind", kind), ("dofs", np.stack([pa[0], pb[0]])),
-                           ("u0", np.stack([pa[1], pb[1]])), ("c0", c0),
+                           ("u0", u0), ("c0", c0),
                            ("names", f"{joint.name}.{label}"), ("joint", joint.name)):
             self.con[key].append(value)
         if profile is not None:
@@ -179,7 +183,7 @@ class Builder:
             elem_St=cat(e["St"], (0, 6, 6)), elem_K=cat(e["K"], (0, 6, 6)),
             elem_B=cat(e["B"], (0, 2, 2, 6)),
             con_kind=np.array(c["kind"], dtype=i64), con_dofs=arr(c["dofs"], (-1, 2, 6), i64),
-            con_u0=arr(c["u0"], (-1, 2, 2)), con_c0=np.array(c["c0"], dtype=dt),
+            con_u0=arr(c["u0"], (-1, 2, 3)), con_c0=np.array(c["c0"], dtype=dt),
             con_drive=self.con_drive,
             load_dofs=arr(ld["dofs"], (-1, 6), i64), load_u0=arr(ld["u0"], (-1, 2)),
             load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"], load_names=ld["name"],

@@ -12,6 +12,7 @@ from .model import (
     Ground,
     Joint,
     Model,
+    Prismatic,
     Revolute,
     RigidBody,
     Torque,
@@ -21,6 +22,6 @@ from .profiles import Constant, Custom, Linear, Profile, Ramp, Sine, SmoothStep,
 
 __all__ = [
     "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Joint", "Linear",
-    "Model", "Profile", "Ramp", "Revolute", "RigidBody", "Sine", "SmoothStep", "Torque", "Weld",
-    "as_profile",
+    "Model", "Prismatic", "Profile", "Ramp", "Revolute", "RigidBody", "Sine", "SmoothStep",
+    "Torque", "Weld", "as_profile",
 ]
