@@ -171,3 +171,52 @@ def test_bad_prismatic_input_is_refused():
         m.add_prismatic(beam, b, at=(10.0, 0.0), axis=(1.0, 0.0))
     with pytest.raises(ml.ModelError, match="connects body 'b' to itself"):
         m.add_prismatic(b, b, at=(0.0, 0.0), axis=(1.0, 0.0))
+
+
+def test_prismatic_joints_are_drawn_as_a_block_on_a_guide(tmp_path):
+    """Model plot: a slider block (a polygon centred on the joint, its long side along the
+    axis) and a guide line along the axis, no ground triangle. Snapshots: a ground guide
+    spanning the stroke, one block per snapshot at the slider's position; on a turning guide
+    the guide follows the rod. The animation writes its frames."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.patches import Polygon
+
+    import morphlab.plots as mp
+
+    def gid(fig, name):
+        return [a for a in fig.axes[0].get_children() if a.get_gid() == name]
+
+    model = _slider_crank()
+    fig = mp.model(model)
+    (block,) = gid(fig, "joint:P")
+    (guide,) = gid(fig, "joint:P:guide")
+    assert isinstance(block, Polygon)
+    corners = block.get_xy()[:4]
+    x0 = model.body("slider").position
+    np.testing.assert_allclose(corners.mean(axis=0), x0, atol=1e-9)
+    assert np.ptp(guide.get_ydata()) == 0.0  # the guide runs along x
+    triangles = [a for a in gid(fig, "ground") if isinstance(a, Polygon)]
+    assert len(triangles) == 1  # the crank's pivot only, none under the slider
+    np.testing.assert_allclose(triangles[0].get_xy()[0], [0.0, 0.0])
+    res = ml.simulate(model, t_end=0.1, dt=1e-3)
+    fig = mp.snapshots(res, n=5)
+    blocks = [a for a in fig.axes[0].patches if a.get_gid().endswith(":P")]
+    assert len(blocks) == 5
+    xs = np.array([b.get_xy()[:4].mean(axis=0)[0] for b in blocks])
+    idx = np.unique(np.round(np.linspace(0, res.n_t - 1, 5)).astype(int))
+    np.testing.assert_allclose(xs, res.dof("slider.x")[idx], atol=1e-9)
+    (line,) = gid(fig, "guide:P")
+    stroke = res.dof("slider.x")
+    assert line.get_xdata().min() < stroke.min() and line.get_xdata().max() > stroke.max()
+    bead = ml.simulate(bead_on_rotating_rod(), t_end=0.05, dt=1e-3)
+    fig = mp.snapshots(bead, n=3)
+    guides = gid(fig, "guide:slide")
+    assert len(guides) == 3  # a turning guide is drawn at every snapshot
+    ends = np.array([[g.get_xdata(), g.get_ydata()] for g in guides])  # (3, 2, 2)
+    angle = np.arctan2(np.diff(ends[:, 1]), np.diff(ends[:, 0]))[:, 0]
+    th = bead.dof("rod.theta")[np.unique(np.round(np.linspace(0, bead.n_t - 1, 3)).astype(int))]
+    np.testing.assert_allclose(angle, th, atol=1e-9)
+    path = mp.animate(res, tmp_path / "slider.gif", n_frames=4)
+    assert path.stat().st_size > 0
