@@ -503,8 +503,9 @@ def energy(result, ax=None, *, relative=True, units=None) -> Figure:
 
     Notes
     -----
-    Lines: kinetic, strain, gravity, work of the applied loads and ``total - work`` with
-    ``total = kinetic + strain + gravity`` (from :attr:`Result.energy`). With damping, the
+    Lines: kinetic, strain, gravity, work of the applied loads, work of the drives (when a
+    model has any) and ``total - work`` with ``total = kinetic + strain + gravity`` and
+    ``work`` that of loads and drives (from :attr:`Result.energy`). With damping, the
     dissipated energy and ``total - work + dissipated`` are added; that last line is constant
     for an exact solution, so its drift measures the integration error.
     """
@@ -519,7 +520,10 @@ def energy(result, ax=None, *, relative=True, units=None) -> Figure:
         bal = bal - bal[0]
     rel = " (from t0)" if relative else ""
     curves = [("kinetic", e["kinetic"]), ("strain", e["strain"]), ("gravity" + rel, grav),
-              ("work of loads", e["work"]), ("total − work" + rel, bal)]
+              ("work of loads", e["load_work"])]
+    if np.any(e["drive_work"] != 0):
+        curves.append(("work of drives", e["drive_work"]))
+    curves.append(("total − work" + rel, bal))
     if np.any(e["damping"] != 0):
         curves += [("dissipated (damping)", e["damping"]),
                    ("total − work + dissipated" + rel, bal + e["damping"])]
