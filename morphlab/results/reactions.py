@@ -19,29 +19,20 @@ import numpy as np
 
 from ..errors import ModelError
 from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y, constraint_values
-from ..model.model import Drive, Ground
-
-
-def _joint(system, name: str):
-    for j in system.model.joints:
-        if j.name == name:
-            return j
-    known = ", ".join(repr(j.name) for j in system.model.joints) or "none"
-    raise ModelError(f"no joint {name!r} in model {system.model.name!r} (joints: {known})")
 
 
 def reaction_rows(system, name: str) -> tuple[np.ndarray, np.ndarray]:
     """The constraint rows of joint ``name`` and the sign ``s_i`` (+1 or -1) with which each
-    row's multiplier pushes the held body (module docstring): ``(rows, signs)``."""
-    j = _joint(system, name)
-    held = getattr(j, "b", None) or j.body
-    flip = 1.0
-    if isinstance(held, Ground):  # b is the ground: minus the action on a
-        held, flip = j.a, -1.0
-    theta = system.body(held.name).ref[2]
+    row's multiplier pushes the held body (module docstring; ``System.con_sign``, set by
+    ``compile``): ``(rows, signs)``."""
     rows = np.array([i for i, jn in enumerate(system.con_joint) if jn == name], dtype=np.int64)
-    side = np.where(system.con_dofs[rows, 0, 2] == theta, 0, 1)
-    return rows, flip * np.where(side == 0, -1.0, 1.0)
+    if rows.size == 0:
+        known = ", ".join(dict.fromkeys(map(repr, system.con_joint))) or "none"
+        raise ModelError(f"no joint {name!r} in model {system.model.name!r} (joints: {known})")
+    signs = np.asarray(system.con_sign)[rows]
+    if not np.all(np.isfinite(signs)):
+        raise ModelError(f"joint {name!r} holds no body whose reaction could be given")
+    return rows, signs
 
 
 def _directions(system, rows, q) -> np.ndarray:
@@ -125,12 +116,14 @@ def reaction_vjp(result, name: str, component: int, n: int, frame: str | None = 
 
 
 def _drive(result, name: str):
-    j = _joint(result.system, name)
-    if not isinstance(j, Drive):
-        drives = [d.name for d in result.system.model.joints if isinstance(d, Drive)]
-        raise ModelError(f"joint {name!r} is a {type(j).__name__}, not a drive (drives: "
+    """Check that ``name`` is a drive: a joint whose rows are all driven (time-dependent)."""
+    s = result.system
+    rows, _ = reaction_rows(s, name)
+    driven = {row for row, _ in s.con_drive}
+    if not set(rows.tolist()) <= driven:
+        drives = dict.fromkeys(s.con_joint[row] for row, _ in s.con_drive)
+        raise ModelError(f"joint {name!r} is not a drive (drives: "
                          f"{', '.join(map(repr, drives)) or 'none'})")
-    return j
 
 
 def drive_torque(result, name: str) -> np.ndarray:
