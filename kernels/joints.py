@@ -241,20 +241,30 @@ def _add_slide_hessian(dP, dQ, uP, uQ, q, coef, hmap, i, data):
 
 
 @njit(cache=True, inline="always")
+def _neg(t):
+    return (-t[0], -t[1], -t[2], -t[3], -t[4], -t[5])
+
+
+@njit(cache=True, inline="always")
+def _point_side(kind, dofs, u, q, v, a):
+    """:func:`_side`, or zeros for the ground (no DOFs; its point sits in ``c``)."""
+    if dofs[0] < 0 and dofs[2] < 0:
+        zero = q[0] * 0.0 + u[0] * 0.0
+        z6 = (zero, zero, zero, zero, zero, zero)
+        return zero, zero, z6, z6, z6, z6
+    return _side(kind, dofs, u[0], u[1], q, v, a)
+
+
+@njit(cache=True, inline="always")
 def _row(kind, dofs0, dofs1, u0, u1, q, v, a):
     """``(g, vHv, grad, Hv, Ha, dvHv)`` of one row of any kind, signs applied, the last four as
     pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`)."""
     if kind == ROW_SLIDE:
         return _slide(dofs0, dofs1, u0, u1, q, v, a)
-    g0, vHv0, gr0, Hv0, Ha0, dv0 = _side(kind, dofs0, u0[0], u0[1], q, v, a)
-    g1, vHv1, gr1, Hv1, Ha1, dv1 = _side(kind, dofs1, u1[0], u1[1], q, v, a)
-    zero = g0 * 0.0
-    if dofs1[0] < 0 and dofs1[2] < 0:  # the ground: no terms
-        g1 = zero
-        vHv1 = zero
-    return (g0 - g1, vHv0 - vHv1, (gr0, _lin(-1.0, gr1, zero, gr1)),
-            (Hv0, _lin(-1.0, Hv1, zero, Hv1)), (Ha0, _lin(-1.0, Ha1, zero, Ha1)),
-            (dv0, _lin(-1.0, dv1, zero, dv1)))
+    g0, vHv0, gr0, Hv0, Ha0, dv0 = _point_side(kind, dofs0, u0, q, v, a)
+    g1, vHv1, gr1, Hv1, Ha1, dv1 = _point_side(kind, dofs1, u1, q, v, a)
+    return (g0 - g1, vHv0 - vHv1, (gr0, _neg(gr1)), (Hv0, _neg(Hv1)), (Ha0, _neg(Ha1)),
+            (dv0, _neg(dv1)))
 
 
 @njit(cache=True, inline="always")
