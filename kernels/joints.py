@@ -6,12 +6,17 @@ Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 
   ``r = R + A (u0 + w)`` for a material point of a body (``w`` the nodal displacement of a beam
   node, zero for a rigid body point);
 * :data:`ROW_ANGLE` (2): the angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` (``phi`` the nodal
-  rotation).
+  rotation);
+* :data:`ROW_SLIDE` (3): the distance of P from a line through Q fixed in Q's body,
+  ``n(psi) . (r_P - r_Q)`` with ``n = (cos psi, sin psi)`` and ``psi = theta_Q + phi_Q + beta``
+  (``beta`` the normal's angle in Q's frame): the row of a prismatic joint that keeps P on the
+  guide. Unlike the other kinds it couples both sides (its Hessian has P-Q blocks).
 
 A side (P or Q) is described by the global DOFs ``(R_x, R_y, theta, u, v, phi)`` of its point
-(``-1`` where absent; all ``-1`` for the ground) and its body-frame position ``u0``. Revolute =
+(``-1`` where absent; all ``-1`` for the ground), its body-frame position ``u0[0:2]`` and an
+angle ``u0[2]`` in the body frame (``beta`` of a slide row's Q; unused otherwise). Revolute =
 an x and a y row; weld = x, y and angle rows; a ground fix any subset; a driving constraint
-a kind-2 row with a time-dependent ``c``.
+a kind-2 row with a time-dependent ``c``; prismatic = a slide row and an angle row.
 
 The acceleration-level right-hand side with Baumgarte-type stabilization (part of the residual,
 so it is differentiated with it) is::
@@ -25,9 +30,9 @@ add ``w_l J^T lambda`` to the equations of motion (paper eq. 25–26 use ``w_l =
 import numpy as np
 from numba import njit
 
-#: Kinds of constraint rows (``con_kind``): the x and y components of ``r_P - r_Q`` and the
-#: angle ``(theta_P + phi_P) - (theta_Q + phi_Q)``.
-ROW_X, ROW_Y, ROW_ANGLE = 0, 1, 2
+#: Kinds of constraint rows (``con_kind``): the x and y components of ``r_P - r_Q``, the
+#: angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` and the slide row (module docstring).
+ROW_X, ROW_Y, ROW_ANGLE, ROW_SLIDE = 0, 1, 2, 3
 
 
 @njit(cache=True, inline="always")
@@ -118,12 +123,153 @@ def _side_hessian(kind, dofs, ux0, uy0, q):
 
 @njit(cache=True, inline="always")
 def _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
-    """Add ``coef H`` of one side to ``data`` at the positions ``hmap[i, side, j, k]``."""
+    """Add ``coef H`` of one side to ``data`` at the positions ``hmap[i, side, side, j, k]``."""
     h22, h23, h24 = _side_hessian(kind, dofs, ux0, uy0, q)
     for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
-        p = hmap[i, side, j, k]
+        p = hmap[i, side, side, j, k]
         if p >= 0:
             data[p] += coef * h
+
+
+@njit(cache=True, inline="always")
+def _lin(x, p, y, r):
+    """The 6-tuple ``x p + y r`` (``p``, ``r`` 6-tuples)."""
+    return (x * p[0] + y * r[0], x * p[1] + y * r[1], x * p[2] + y * r[2], x * p[3] + y * r[3],
+            x * p[4] + y * r[4], x * p[5] + y * r[5])
+
+
+@njit(cache=True, inline="always")
+def _psi(dofs, w, zero):
+    """``w[theta] + w[phi]`` of a side (zero where absent)."""
+    out = zero
+    if dofs[2] >= 0:
+        out += w[dofs[2]]
+    if dofs[5] >= 0:
+        out += w[dofs[5]]
+    return out
+
+
+@njit(cache=True, inline="always")
+def _dot(grad, dofs, w, zero):
+    out = zero
+    for j in range(6):
+        if dofs[j] >= 0:
+            out += grad[j] * w[dofs[j]]
+    return out
+
+
+@njit(cache=True, inline="always")
+def _slide(dP, dQ, uP, uQ, q, v, a):
+    """A slide row ``g = n(psi) . d``, ``d = r_P - r_Q``, ``psi = theta_Q + phi_Q + beta``:
+    ``(g, vHv, grad, Hv, Ha, dvHv)`` as :func:`_side` gives them, but each of the last four a
+    pair (P side, Q side) of 6-tuples, signs included. ``uP = (x, y, -)``, ``uQ = (x, y, beta)``.
+
+    With ``t = dn/dpsi`` and ``D = dd/dq``: ``grad = n^T D + (t.d) e_psi``;
+    ``H = n.H_d + e_psi (t^T D) + (t^T D)^T e_psi^T - (n.d) e_psi e_psi^T``;
+    ``v^T H v = n.(v^T H_d v) + 2 psi' t.(D v) - psi'^2 n.d``.
+    """
+    zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
+    gxP, vxP, grxP, HvxP, HaxP, dvxP = _side(ROW_X, dP, uP[0], uP[1], q, v, a)
+    gyP, vyP, gryP, HvyP, HayP, dvyP = _side(ROW_Y, dP, uP[0], uP[1], q, v, a)
+    gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ = _side(ROW_X, dQ, uQ[0], uQ[1], q, v, a)
+    gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ = _side(ROW_Y, dQ, uQ[0], uQ[1], q, v, a)
+    psi = _psi(dQ, q, zero) + uQ[2]
+    pv = _psi(dQ, v, zero)
+    pa = _psi(dQ, a, zero)
+    nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
+    tx, ty = -ny, nx
+    dx, dy = gxP - gxQ, gyP - gyQ
+    # D v, D a and v^T H_d v of d (components x, y)
+    dvx = _dot(grxP, dP, v, zero) - _dot(grxQ, dQ, v, zero)
+    dvy = _dot(gryP, dP, v, zero) - _dot(gryQ, dQ, v, zero)
+    dax = _dot(grxP, dP, a, zero) - _dot(grxQ, dQ, a, zero)
+    day = _dot(gryP, dP, a, zero) - _dot(gryQ, dQ, a, zero)
+    hx, hy = vxP - vxQ, vyP - vyQ
+    nd, td = nx * dx + ny * dy, tx * dx + ty * dy
+    g = nd
+    vHv = nx * hx + ny * hy + 2.0 * pv * (tx * dvx + ty * dvy) - pv * pv * nd
+    e = (zero, zero, zero + 1.0, zero, zero, zero + 1.0)  # d psi / dq of the Q side
+    nP, nQ = _lin(nx, grxP, ny, gryP), _lin(nx, grxQ, ny, gryQ)
+    tP, tQ = _lin(tx, grxP, ty, gryP), _lin(tx, grxQ, ty, gryQ)
+    gP = nP
+    gQ = _lin(-1.0, nQ, td, e)
+    HvP = _lin(1.0, _lin(nx, HvxP, ny, HvyP), pv, tP)
+    HaP = _lin(1.0, _lin(nx, HaxP, ny, HayP), pa, tP)
+    HvQ = _lin(-1.0, _lin(nx, HvxQ, ny, HvyQ), -pv, tQ)
+    HvQ = _lin(1.0, HvQ, tx * dvx + ty * dvy - nd * pv, e)
+    HaQ = _lin(-1.0, _lin(nx, HaxQ, ny, HayQ), -pa, tQ)
+    HaQ = _lin(1.0, HaQ, tx * dax + ty * day - nd * pa, e)
+    dvP = _lin(1.0, _lin(nx, dvxP, ny, dvyP), 2.0 * pv, _lin(tx, HvxP, ty, HvyP))
+    dvP = _lin(1.0, dvP, -pv * pv, nP)
+    dvQ = _lin(-1.0, _lin(nx, dvxQ, ny, dvyQ), -2.0 * pv, _lin(tx, HvxQ, ty, HvyQ))
+    dvQ = _lin(1.0, dvQ, pv * pv, nQ)
+    dvQ = _lin(1.0, dvQ, tx * hx + ty * hy - 2.0 * pv * (nx * dvx + ny * dvy) - pv * pv * td, e)
+    return g, vHv, (gP, gQ), (HvP, HvQ), (HaP, HaQ), (dvP, dvQ)
+
+
+@njit(cache=True, inline="always")
+def _add_slide_hessian(dP, dQ, uP, uQ, q, coef, hmap, i, data):
+    """Add ``coef H`` of a slide row (:func:`_slide`) to ``data`` at ``hmap[i, r, c, j, k]``
+    (``r``, ``c``: the sides of row and column; 0 = P, 1 = Q)."""
+    zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
+    psi = _psi(dQ, q, zero) + uQ[2]
+    nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
+    _, _, grxP, _, _, _ = _side(ROW_X, dP, uP[0], uP[1], q, q, q)
+    _, _, gryP, _, _, _ = _side(ROW_Y, dP, uP[0], uP[1], q, q, q)
+    gxQ, _, grxQ, _, _, _ = _side(ROW_X, dQ, uQ[0], uQ[1], q, q, q)
+    gyQ, _, gryQ, _, _, _ = _side(ROW_Y, dQ, uQ[0], uQ[1], q, q, q)
+    gxP, _, _, _, _, _ = _side(ROW_X, dP, uP[0], uP[1], q, q, q)
+    gyP, _, _, _, _, _ = _side(ROW_Y, dP, uP[0], uP[1], q, q, q)
+    nd = nx * (gxP - gxQ) + ny * (gyP - gyQ)
+    _add_hessian(ROW_X, dP, uP[0], uP[1], q, coef * nx, hmap, i, 0, data)
+    _add_hessian(ROW_Y, dP, uP[0], uP[1], q, coef * ny, hmap, i, 0, data)
+    _add_hessian(ROW_X, dQ, uQ[0], uQ[1], q, -coef * nx, hmap, i, 1, data)
+    _add_hessian(ROW_Y, dQ, uQ[0], uQ[1], q, -coef * ny, hmap, i, 1, data)
+    tP = _lin(-ny, grxP, nx, gryP)
+    tQ = _lin(-ny, grxQ, nx, gryQ)
+    for j in (2, 5):
+        for m in range(6):
+            for (r, c, jj, mm, h) in ((0, 1, m, j, tP[m]), (1, 0, j, m, tP[m]),
+                                      (1, 1, j, m, -tQ[m]), (1, 1, m, j, -tQ[m])):
+                p = hmap[i, r, c, jj, mm]
+                if p >= 0:
+                    data[p] += coef * h
+        for k in (2, 5):
+            p = hmap[i, 1, 1, j, k]
+            if p >= 0:
+                data[p] -= coef * nd
+
+
+@njit(cache=True, inline="always")
+def _neg(t):
+    return (-t[0], -t[1], -t[2], -t[3], -t[4], -t[5])
+
+
+@njit(cache=True, inline="always")
+def _point_side(kind, dofs, u, q, v, a):
+    """:func:`_side`, or zeros for the ground (no DOFs; its point sits in ``c``)."""
+    if dofs[0] < 0 and dofs[2] < 0:
+        zero = q[0] * 0.0 + u[0] * 0.0
+        z6 = (zero, zero, zero, zero, zero, zero)
+        return zero, zero, z6, z6, z6, z6
+    return _side(kind, dofs, u[0], u[1], q, v, a)
+
+
+@njit(cache=True, inline="always")
+def _row(kind, dofs0, dofs1, u0, u1, q, v, a):
+    """``(g, vHv, grad, Hv, Ha, dvHv)`` of one row of any kind, signs applied, the last four as
+    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`)."""
+    if kind == ROW_SLIDE:
+        return _slide(dofs0, dofs1, u0, u1, q, v, a)
+    g0, vHv0, gr0, Hv0, Ha0, dv0 = _point_side(kind, dofs0, u0, q, v, a)
+    g1, vHv1, gr1, Hv1, Ha1, dv1 = _point_side(kind, dofs1, u1, q, v, a)
+    return (g0 - g1, vHv0 - vHv1, (gr0, _neg(gr1)), (Hv0, _neg(Hv1)), (Ha0, _neg(Ha1)),
+            (dv0, _neg(dv1)))
+
+
+@njit(cache=True, inline="always")
+def _u(con_u0, i, side):
+    return (con_u0[i, side, 0], con_u0[i, side, 1], con_u0[i, side, 2])
 
 
 @njit(cache=True)
@@ -148,26 +294,18 @@ def constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd
     con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
     zero = R[0] * 0.0
     for i in rows:
-        kind = con_kind[i]
-        g = zero
+        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
+        g, vHv, grad, _, _, _ = _row(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
+                                     _u(con_u0, i, 1), q, v, a)
         Ja = zero
         Jv = zero
-        vHv = zero
         for side in range(2):
-            sg = 1.0 if side == 0 else -1.0
-            dofs = _dofs(con_dofs, i, side)
-            if dofs[0] < 0 and dofs[2] < 0:
-                continue
-            gs, vHvs, grad, _, _, _ = _side(kind, dofs, con_u0[i, side, 0], con_u0[i, side, 1],
-                                            q, v, a)
-            g += sg * gs
-            vHv += sg * vHvs
             for j in range(6):
-                d = dofs[j]
+                d = dofs[side][j]
                 if d >= 0:
-                    Ja += sg * grad[j] * a[d]
-                    Jv += sg * grad[j] * v[d]
-                    R[d] += wl * sg * grad[j] * lam[i]
+                    Ja += grad[side][j] * a[d]
+                    Jv += grad[side][j] * v[d]
+                    R[d] += wl * grad[side][j] * lam[i]
         Fc = -vHv + cdd[i] - b1 * (Jv - cd[i]) - b0 * (g - c[i])
         R[n_dof + i] += scale * (wcm * Ja - wcf * Fc)
 
@@ -178,37 +316,40 @@ def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, d
 
     ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
     ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
-    ``S.con_map_H[i, side, j, k]``: position of (DOF j, DOF k) of the same side. ``-1`` marks
-    an absent entry.
+    ``S.con_map_H[i, r, c, j, k]``: position of (DOF j of side r, DOF k of side c) (only
+    ``r == c`` for the rows of one side's points). ``-1`` marks an absent entry.
     """
     con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
     map_row, map_col, map_H = S.con_map_row, S.con_map_col, S.con_map_H
     for i in range(con_kind.shape[0]):
         kind = con_kind[i]
+        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
+        u = (_u(con_u0, i, 0), _u(con_u0, i, 1))
+        _, _, grad, Hv, Ha, dvHv = _row(kind, dofs[0], dofs[1], u[0], u[1], q, v, a)
         for side in range(2):
-            sg = 1.0 if side == 0 else -1.0
-            dofs = _dofs(con_dofs, i, side)
-            if dofs[0] < 0 and dofs[2] < 0:
-                continue
-            ux0 = con_u0[i, side, 0]
-            uy0 = con_u0[i, side, 1]
-            _, _, grad, Hv, Ha, dvHv = _side(kind, dofs, ux0, uy0, q, v, a)
             for j in range(6):
-                if dofs[j] < 0:
+                if dofs[side][j] < 0:
                     continue
+                gr = grad[side][j]
                 # constraint row: d/da of wcm J a - wcf F_c
-                dFc_dq = -sg * dvHv[j] - b1 * sg * Hv[j] - b0 * sg * grad[j]
-                dFc_dv = -2.0 * sg * Hv[j] - b1 * sg * grad[j]
-                val = ccm * (sg * grad[j] + bh2 * sg * Ha[j]) - ccf * (bh2 * dFc_dq + gh * dFc_dv)
+                dFc_dq = -dvHv[side][j] - b1 * Hv[side][j] - b0 * gr
+                dFc_dv = -2.0 * Hv[side][j] - b1 * gr
+                val = ccm * (gr + bh2 * Ha[side][j]) - ccf * (bh2 * dFc_dq + gh * dFc_dv)
                 p = map_row[i, side, j]
                 if p >= 0:
                     data[p] += scale * val
                 p = map_col[i, side, j]
                 if p >= 0:
-                    data[p] += cl * scale * sg * grad[j]
-            if kind != ROW_ANGLE:
-                _add_hessian(kind, dofs, ux0, uy0, q, cl * bh2 * sg * lam[i], map_H, i, side,
-                             data)
+                    data[p] += cl * scale * gr
+        coef = cl * bh2 * lam[i]
+        if kind == ROW_SLIDE:
+            _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, data)
+        elif kind != ROW_ANGLE:
+            for side in range(2):
+                if dofs[side][0] >= 0 or dofs[side][2] >= 0:
+                    sg = 1.0 if side == 0 else -1.0
+                    _add_hessian(kind, dofs[side], u[side][0], u[side][1], q, sg * coef, map_H,
+                                 i, side, data)
 
 
 @njit(cache=True)
@@ -217,19 +358,14 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
     ``phid = J q' - c'`` (each (n_con,), out)."""
     zero = q[0] * 0.0
     for i in range(con_kind.shape[0]):
-        g = zero
+        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
+        g, _, grad, _, _, _ = _row(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
+                                   _u(con_u0, i, 1), q, v, v)
         Jv = zero
         for side in range(2):
-            sg = 1.0 if side == 0 else -1.0
-            dofs = _dofs(con_dofs, i, side)
-            if dofs[0] < 0 and dofs[2] < 0:
-                continue
-            gs, _, grad, _, _, _ = _side(con_kind[i], dofs, con_u0[i, side, 0],
-                                         con_u0[i, side, 1], q, v, v)
-            g += sg * gs
             for j in range(6):
-                if dofs[j] >= 0:
-                    Jv += sg * grad[j] * v[dofs[j]]
+                if dofs[side][j] >= 0:
+                    Jv += grad[side][j] * v[dofs[side][j]]
         phi[i] = g - c[i]
         phid[i] = Jv - cd[i]
 

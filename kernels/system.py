@@ -29,7 +29,7 @@ flex_I0IS  (n_flex,)            ``I_0ĨS``
 elem_M     (n_elem, 6, 6)       element ``M_ff``
 elem_St    (n_elem, 6, 6)       element ``S̃``
 elem_K     (n_elem, 6, 6)       element stiffness
-con_u0     (n_con, 2, 2)        body-frame point of each side of each constraint row
+con_u0     (n_con, 2, 3)        body-frame point of each side of a row, and an angle (slide)
 load_u0    (n_load, 2)          body-frame point of each point load
 body_ref   (n_body, 3)          DOFs ``R_x, R_y, theta`` of each body
 flex_off   (n_body + 1,)        each body's range of flexible coordinates

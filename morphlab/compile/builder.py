@@ -73,7 +73,7 @@ class Builder:
         self.flex = {"IS": [], "I0S": [], "I0IS": []}
         self.elem = {k: [] for k in ("body", "fdof", "dofs", "M", "St", "K", "B")}
         self.n_elem = 0
-        self.con = {k: [] for k in ("kind", "dofs", "u0", "c0", "names", "joint")}
+        self.con = {k: [] for k in ("kind", "dofs", "u0", "c0", "names", "joint", "sign")}
         self.con_drive: list = []
         self.load = {k: [] for k in ("dofs", "u0", "F0", "prof", "name")}
         self.torque = {k: [] for k in ("dofs", "T0", "prof", "name")}
@@ -132,15 +132,36 @@ class Builder:
             return -np.ones(6, dtype=np.int64), np.zeros(2, dtype=self.dtype), 0.0
         return self.locate[body.name](at)
 
-    def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None):
+    def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None,
+                beta=0.0):
         """A constraint row ``g(q) - c(t) = 0`` of ``kind`` between the points ``pa`` and
-        ``pb`` (:meth:`point`), ``c = c0`` (+ ``profile(t)`` for a driven row)."""
+        ``pb`` (:meth:`point`), ``c = c0`` (+ ``profile(t)`` for a driven row); ``beta``: the
+        angle in ``pb``'s body frame of a slide row's normal (``kernels.joints``)."""
+        u0 = np.zeros((2, 3), dtype=self.dtype)
+        u0[0, :2], u0[1, :2], u0[1, 2] = pa[1], pb[1], beta
         for key, value in (("kind", kind), ("dofs", np.stack([pa[0], pb[0]])),
-                           ("u0", np.stack([pa[1], pb[1]])), ("c0", c0),
-                           ("names", f"{joint.name}.{label}"), ("joint", joint.name)):
+                           ("u0", u0), ("c0", c0),
+                           ("names", f"{joint.name}.{label}"), ("joint", joint.name),
+                           ("sign", self._reaction_sign(joint, pa))):
             self.con[key].append(value)
         if profile is not None:
             self.con_drive.append((len(self.con["kind"]) - 1, profile))
+
+    def _reaction_sign(self, joint, pa) -> float:
+        """The sign with which a row's multiplier pushes the body the joint holds
+        (``morphlab.results.reactions``): ``-1`` if that body is side 0 (``pa``), ``+1`` if side
+        1; negated when the held body ``b`` is the ground (the action on ``a`` is measured)."""
+        held, flip = getattr(joint, "b", None), 1.0
+        if held is None:
+            held = getattr(joint, "body", None)
+        if isinstance(held, Ground):
+            held, flip = joint.a, -1.0
+        at = getattr(joint, "at", None)
+        if at is None:
+            at = getattr(held, "position", None)
+        if held is None or at is None:
+            return float("nan")  # a kind of joint without a held body: no reaction
+        return flip * (-1.0 if np.array_equal(pa[0], self.point(held, at)[0]) else 1.0)
 
     def add_load(self, point, force, profile: Profile, name: str) -> None:
         """A point force ``force * profile(t)`` (global direction) at ``point``."""
@@ -184,7 +205,8 @@ class Builder:
             elem_St=cat(e["St"], (0, 6, 6)), elem_K=cat(e["K"], (0, 6, 6)),
             elem_B=cat(e["B"], (0, 2, 2, 6)),
             con_kind=np.array(c["kind"], dtype=i64), con_dofs=arr(c["dofs"], (-1, 2, 6), i64),
-            con_u0=arr(c["u0"], (-1, 2, 2)), con_c0=np.array(c["c0"], dtype=dt),
+            con_u0=arr(c["u0"], (-1, 2, 3)), con_c0=np.array(c["c0"], dtype=dt),
+            con_sign=np.array(c["sign"], dtype=np.float64),
             con_drive=self.con_drive,
             load_dofs=arr(ld["dofs"], (-1, 6), i64), load_u0=arr(ld["u0"], (-1, 2)),
             load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"], load_names=ld["name"],

@@ -1,13 +1,14 @@
 """Compile functions of the joints: each becomes scalar constraint rows
-(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE``) between two material points.
+(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE``, ``ROW_SLIDE``) between two
+material points.
 Formulation: ``docs/theory.md`` §4."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
-from ..model.model import Drive, Fix, Ground, Revolute, RigidBody, Weld
+from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y
+from ..model.model import Drive, Fix, Ground, Prismatic, Revolute, RigidBody, Weld
 from .builder import Builder, compiles
 
 
@@ -43,3 +44,26 @@ def compile_drive(j: Drive, b: Builder) -> None:
         j.body.position if isinstance(j.body, RigidBody) else None)
     pa = b.point(j.body, at)
     b.add_row(ROW_ANGLE, j, "r", pa, b.point(b.model.ground, at), pa[2], profile=j.profile)
+
+
+def _angle(vec):
+    """Angle of the direction ``vec`` (2,); for a complex ``vec`` (a complex step through
+    ``build``) its analytic continuation, so the angle follows the perturbation."""
+    d = np.real(vec)
+    th = float(np.arctan2(d[1], d[0]))
+    if np.iscomplexobj(vec):
+        th = th + np.arctan((d[0] * vec[1] - d[1] * vec[0]) / (d[0] * vec[0] + d[1] * vec[1]))
+    return th
+
+
+@compiles(Prismatic)
+def compile_prismatic(j: Prismatic, b: Builder) -> None:
+    """A slide row ``n . (r_P - r_Q) = 0`` (P the point of ``b``, Q that of ``a``, ``n`` the
+    guide's normal fixed in ``a``: its angle in ``a``'s frame is ``beta``) and an angle row
+    holding ``b``'s rotation relative to ``a``; ``b`` is side 0 of both rows."""
+    pa, pb = b.point(j.a, j.at), b.point(j.b, j.at)
+    if isinstance(j.a, Ground):  # the guide's point in the ground frame is ``at`` itself
+        pa = (pa[0], np.asarray(j.at, dtype=b.dtype), 0.0)
+    beta = _angle(np.asarray(j.axis)) + np.pi / 2 - pa[2]
+    b.add_row(ROW_SLIDE, j, "n", pb, pa, 0.0, beta=beta)
+    b.add_row(ROW_ANGLE, j, "r", pb, pa, pb[2] - pa[2])

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.joints import ROW_ANGLE
+from ..kernels.joints import ROW_ANGLE, ROW_SLIDE
 
 # entries of a side's 6 x 6 Hessian that can be nonzero (theta-theta, theta-w, w-theta)
 _HESS_ENTRIES = ((2, 2), (2, 3), (3, 2), (2, 4), (4, 2))
@@ -80,6 +80,28 @@ def _hessian(dofs, which) -> tuple[np.ndarray, np.ndarray]:
     return Hr, Hc
 
 
+def _con_hessian(cd, kind) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the constraint Hessians, (n_con, 2, 2, 6, 6) indexed by the side of
+    the row and of the column DOF: the one-side entries :data:`_HESS_ENTRIES` of point rows
+    (none for angle rows), every pair of the two sides' DOFs for a slide row (its Hessian
+    couples the guide's rotation with both points)."""
+    n_con = cd.shape[0]
+    Hr = -np.ones((n_con, 2, 2, 6, 6), dtype=np.int64)
+    Hc = -np.ones_like(Hr)
+    point = (kind != ROW_ANGLE) & (kind != ROW_SLIDE)
+    for side in range(2):
+        Hr[:, side, side], Hc[:, side, side] = _hessian(cd[:, side], point)
+    slide = kind == ROW_SLIDE
+    for r in range(2):
+        for c in range(2):
+            rows = np.broadcast_to(cd[:, r, :, None], (n_con, 6, 6))
+            cols = np.broadcast_to(cd[:, c, None, :], (n_con, 6, 6))
+            ok = slide[:, None, None] & (rows >= 0) & (cols >= 0)
+            Hr[:, r, c] = np.where(ok, rows, Hr[:, r, c])
+            Hc[:, r, c] = np.where(ok, cols, Hc[:, r, c])
+    return Hr, Hc
+
+
 def newton_pattern(s) -> dict:
     """Fixed CSC pattern of the Newton matrix and the scatter map of every contribution."""
     n_dof, n_con = s["n_dof"], s["n_con"]
@@ -92,6 +114,6 @@ def newton_pattern(s) -> dict:
     crow = (n_dof + np.arange(n_con))[:, None, None]
     pat.add("con_map_row", crow, cd)
     pat.add("con_map_col", cd, crow)
-    pat.add("con_map_H", *_hessian(cd, (s["con_kind"] != ROW_ANGLE)[:, None]))
+    pat.add("con_map_H", *_con_hessian(cd, s["con_kind"]))
     pat.add("load_map", *_hessian(s["load_dofs"], True))
     return dict(pat.finish(), border_off=border_off)

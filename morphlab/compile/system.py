@@ -124,6 +124,9 @@ class System:
     dof_names: list = field(default_factory=list)
     con_names: list = field(default_factory=list)
     con_joint: list = field(default_factory=list)
+    #: (n_con,) sign with which each row's multiplier pushes the body its joint holds
+    #: (``morphlab.results.reactions``)
+    con_sign: np.ndarray = field(default_factory=lambda: np.zeros(0))
     length_scale: float = 1.0
 
     @property

@@ -12,6 +12,7 @@ from .model import (
     Ground,
     Joint,
     Model,
+    Prismatic,
     Revolute,
     RigidBody,
     Torque,
@@ -35,7 +36,7 @@ from .profiles import (
 
 __all__ = [
     "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Joint",
-    "Linear", "Model", "Polynomial", "Product", "Profile", "Ramp", "Revolute", "RigidBody",
-    "Scaled", "Sine", "SmoothStep", "Sum", "Torque", "Weld",
+    "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp", "Revolute",
+    "RigidBody", "Scaled", "Sine", "SmoothStep", "Sum", "Torque", "Weld",
     "as_profile",
 ]

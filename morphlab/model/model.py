@@ -345,6 +345,18 @@ class Weld(Joint):
 
 
 @dataclass(eq=False)
+class Prismatic(Joint):
+    """Slider: the material point of ``b`` at ``at`` moves along the line through ``at`` with
+    direction ``axis`` fixed in ``a`` (in the frame of the beam node at ``at`` when ``a`` is a
+    beam), and the relative rotation of ``a`` and ``b`` is held at its initial value (2 rows)."""
+
+    a: Body
+    b: Body
+    at: np.ndarray
+    axis: np.ndarray
+
+
+@dataclass(eq=False)
 class Fix(Joint):
     """Ground constraint on a subset of x, y and rotation of the point ``at`` of ``body``."""
 
@@ -530,6 +542,27 @@ class Model:
         for body in (a, b):
             at = self._check_point_on(body, at, f"weld {name!r}")
         j = Weld(name, a, b, at)
+        self.joints.append(j)
+        return j
+
+    def add_prismatic(self, a, b, *, at, axis, name=None) -> Prismatic:
+        """Let ``b`` slide along ``a``: the point of ``b`` at ``at`` (a node if on a beam)
+        stays on the line through ``at`` with direction ``axis`` (global, initial
+        configuration; any length) fixed in ``a`` (or the ground), and the relative rotation of
+        ``a`` and ``b`` is locked. Its reaction (:meth:`Result.reaction`) is the guide's
+        action on ``b``: the normal force and the locking moment."""
+        name = self._joint_name(name, "prismatic")
+        what = f"prismatic {name!r}"
+        a, b = self._own(a, what), self._own(b, what)
+        if a is b:
+            raise ModelError(f"{what}: connects body {a.name!r} to itself")
+        for body in (a, b):
+            at = self._check_point_on(body, at, what)
+        axis = _point(axis, "axis", what)
+        if not np.hypot(*_real(axis)) > 0:
+            raise ModelError(f"{what}: axis must be a nonzero direction (x, y), got "
+                             f"{_show(axis)}")
+        j = Prismatic(name, a, b, at, axis)
         self.joints.append(j)
         return j
 

@@ -14,7 +14,17 @@ from matplotlib.patches import FancyArrowPatch, Polygon, Rectangle
 
 from ..compile.system import System
 from ..errors import ModelError
-from ..model.model import Beam, Drive, Fix, Ground, Model, Revolute, RigidBody, Weld
+from ..model.model import (
+    Beam,
+    Drive,
+    Fix,
+    Ground,
+    Model,
+    Prismatic,
+    Revolute,
+    RigidBody,
+    Weld,
+)
 from ._common import (
     _LINESTYLES,
     _SEQUENTIAL,
@@ -24,6 +34,7 @@ from ._common import (
     _real_array,
     _units,
 )
+from ._sliders import _block, _sliders, _unit
 
 
 def _attachment_points(m: Model) -> dict:
@@ -40,7 +51,7 @@ def _attachment_points(m: Model) -> dict:
             lst.append(p)
 
     for j in m.joints:
-        if isinstance(j, (Revolute, Weld)):
+        if isinstance(j, (Revolute, Weld, Prismatic)):
             add(j.a, j.at)
             add(j.b, j.at)
         elif isinstance(j, (Fix, Drive)):
@@ -137,7 +148,8 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
     Beams are polylines through their nodes (n_nodes, 2) [length]. A rigid body is a square at
     its centre of mass with lines to the points where its joints and loads attach (taken from
     ``model.joints``, ``model.forces`` and ``model.torques``). Joints: open circle = revolute,
-    filled square = weld, joints to the ground and :class:`~morphlab.model.Fix` constraints
+    filled square = weld, a block on a guide line = prismatic, joints to the ground and
+    :class:`~morphlab.model.Fix` constraints
     stand on a hatched ground symbol (a triangle for a pin, a block when the rotation is held),
     a drive is a dashed curved arrow. Forces are arrows of fixed length (a fraction of the model
     size) pointing at their point, torques solid curved arrows (counter-clockwise when positive).
@@ -200,6 +212,14 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
             elif isinstance(j, Weld):
                 ax.plot([p[0]], [p[1]], "s", markersize=6, color="k", zorder=5,
                         gid=f"joint:{j.name}")
+            elif isinstance(j, Prismatic):
+                e = _unit(j.axis)
+                ends = np.array([p - 4 * sym * e, p + 4 * sym * e])
+                ax.plot(ends[:, 0], ends[:, 1], "-", color="0.3", linewidth=1.0, zorder=3,
+                        gid=f"joint:{j.name}:guide")
+                ax.add_patch(Polygon(_block(p, e, sym), closed=True, facecolor="white",
+                                     edgecolor="k", linewidth=1.0, zorder=5,
+                                     gid=f"joint:{j.name}"))
             else:
                 ax.plot([p[0]], [p[1]], "o", markersize=4, color="k", zorder=5,
                         gid=f"joint:{j.name}")
@@ -357,7 +377,7 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
     closed polygon for three or more points, centre of mass to point for one). One line per
     body and snapshot, ``gid="snapshot:<i>:<body>"``. Colour runs from light (early) to dark
     (late) along reversed viridis; a colorbar gives the time. Ground joints are black
-    triangles.
+    triangles; a prismatic joint is its guide line (grey) and a slider block per snapshot.
     """
     u = _units(units)
     _check_result(result)
@@ -379,6 +399,15 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
             ax.plot(P[:, 0], P[:, 1], "-", color=colour, linewidth=1.4,
                     marker="o" if P.shape[0] == 1 else None, markersize=4,
                     gid=f"snapshot:{i}:{name}")
+    sym = 0.03 * _model_size(result.system.model)
+    for j, P, d, ends in _sliders(result, _model_size(result.system.model)):
+        for i, k in enumerate(idx):
+            if i == 0 or not isinstance(j.a, Ground):
+                ax.plot(ends[k, :, 0], ends[k, :, 1], "-", color="0.5", linewidth=1.0,
+                        gid=f"guide:{j.name}")
+            ax.add_patch(Polygon(_block(P[k], d[k], sym), closed=True, fill=False,
+                                 edgecolor=cmap(norm(t[k])), linewidth=1.2,
+                                 gid=f"snapshot:{i}:{j.name}"))
     g = [p for p, _, _ in _ground_points(result.system.model)]
     if g:
         g = np.array(g)
@@ -465,6 +494,14 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
     if g:
         g = np.array(g)
         ax.plot(g[:, 0], g[:, 1], "^", color="k", markersize=7, linestyle="none")
+    sym = 0.03 * _model_size(result.system.model)
+    sliders = []
+    for _j, P, d, ends in _sliders(result, _model_size(result.system.model)):
+        (guide,) = ax.plot(ends[0, :, 0], ends[0, :, 1], "-", color="0.5", linewidth=1.0)
+        block = Polygon(_block(P[0], d[0], sym), closed=True, facecolor="white",
+                        edgecolor="k", linewidth=1.0, zorder=4)
+        ax.add_patch(block)
+        sliders.append((guide, block, P, d, ends))
     lines = []
     colours = itertools.cycle(colormaps[_SEQUENTIAL](np.linspace(0.0, 0.7, 4)))
     for _, xy, _, _ in outlines:
@@ -478,6 +515,9 @@ def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=Non
             for ln, (_, xy, closed, _) in zip(lines, outlines):
                 P = np.vstack([xy[k], xy[k][:1]]) if closed else xy[k]
                 ln.set_data(P[:, 0], P[:, 1])
+            for guide, block, P, d, ends in sliders:
+                guide.set_data(ends[k, :, 0], ends[k, :, 1])
+                block.set_xy(_block(P[k], d[k], sym))
             title.set_text(f"t = {t[k]:.4g} {u['time']}" + (
                 f", deformation x{magnify:g}" if magnify != 1.0 else ""))
             writer.grab_frame()
@@ -507,8 +547,9 @@ def energy(result, ax=None, *, relative=True, units=None) -> Figure:
 
     Notes
     -----
-    Lines: kinetic, strain, gravity, work of the applied loads and ``total - work`` with
-    ``total = kinetic + strain + gravity`` (from :attr:`Result.energy`). With damping, the
+    Lines: kinetic, strain, gravity, work of the applied loads, work of the drives (when a
+    model has any) and ``total - work`` with ``total = kinetic + strain + gravity`` and
+    ``work`` that of loads and drives (from :attr:`Result.energy`). With damping, the
     dissipated energy and ``total - work + dissipated`` are added; that last line is constant
     for an exact solution, so its drift measures the integration error.
     """
@@ -523,7 +564,10 @@ def energy(result, ax=None, *, relative=True, units=None) -> Figure:
         bal = bal - bal[0]
     rel = " (from t0)" if relative else ""
     curves = [("kinetic", e["kinetic"]), ("strain", e["strain"]), ("gravity" + rel, grav),
-              ("work of loads", e["work"]), ("total − work" + rel, bal)]
+              ("work of loads", e["load_work"])]
+    if np.any(e["drive_work"] != 0):
+        curves.append(("work of drives", e["drive_work"]))
+    curves.append(("total − work" + rel, bal))
     if np.any(e["damping"] != 0):
         curves += [("dissipated (damping)", e["damping"]),
                    ("total − work + dissipated" + rel, bal + e["damping"])]

@@ -15,6 +15,7 @@ from ..errors import ModelError
 from ..kernels.assemble import add_residual
 from ..kernels.joints import load_residual
 from ..model.model import Beam, RigidBody
+from . import reactions
 from .kinematics import kinematics
 
 
@@ -207,13 +208,29 @@ class Result:
         s = np.matmul(B.reshape(n_e, 4, 6), d)  # (n_elem, 4, n_t), per element one product
         return s.reshape(n_e, 2, 2, -1).transpose(3, 0, 1, 2)
 
+    # ---- joint reactions and drives (morphlab.results.reactions)
+    def reaction(self, name: str, frame: str | None = None) -> np.ndarray:
+        """Force ``F_x, F_y`` and moment joint ``name`` transmits to the body it holds, (n_t, 3):
+        the action of ``a`` on ``b`` (of the ground on ``body`` for a fix or drive), global or
+        in the frame of the body called ``frame`` (:mod:`morphlab.results.reactions`)."""
+        return reactions.reaction(self, name, frame)
+
+    def drive_torque(self, name: str) -> np.ndarray:
+        """Torque the drive ``name`` applies to its body [force·length], (n_t,)."""
+        return reactions.drive_torque(self, name)
+
+    def drive_power(self, name: str) -> np.ndarray:
+        """Power the drive ``name`` delivers (torque times angular rate), (n_t,)."""
+        return reactions.drive_power(self, name)
+
     # ---- energy
     @property
     def energy(self) -> dict:
         """Energy balance over time: ``kinetic``, ``strain``, ``gravity`` (potential),
-        ``damping`` (dissipated), ``work`` (of applied forces and torques), and ``total`` =
-        kinetic + strain + gravity; each (n_t,). For a conservative system ``total - work``
-        is constant (computed once, on first access)."""
+        ``damping`` (dissipated), ``load_work`` (of applied forces and torques),
+        ``drive_work`` (of the drives), ``work`` (both), and ``total`` = kinetic + strain +
+        gravity; each (n_t,). ``total - work + damping`` is constant up to the integrator's
+        error (computed once, on first access)."""
         if self.energy_cache is None:
             self.energy_cache = energy(self)
         return self.energy_cache
@@ -315,8 +332,14 @@ def energy(res: Result) -> dict:
                             np.sin(th) * cu[0] + np.cos(th) * cu[1]])
             r = np.real(q[ref[:2]]) * m + Acu
             grav[i] -= float(np.real(s.gravity) @ r)
-    dtt = np.diff(res.t)
-    work = np.concatenate([[0.0], np.cumsum(0.5 * (power_ext[1:] + power_ext[:-1]) * dtt)])
-    diss = np.concatenate([[0.0], np.cumsum(0.5 * (power_damp[1:] + power_damp[:-1]) * dtt)])
-    return {"kinetic": kin, "strain": strain, "gravity": grav, "damping": diss, "work": work,
+    work = _cumulative(power_ext, res.t)
+    diss = _cumulative(power_damp, res.t)
+    drive = _cumulative(reactions.drive_power_total(res), res.t)
+    return {"kinetic": kin, "strain": strain, "gravity": grav, "damping": diss,
+            "load_work": work, "drive_work": drive, "work": work + drive,
             "total": kin + strain + grav}
+
+
+def _cumulative(power: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Trapezoidal integral of ``power`` from ``t[0]`` to every time."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
