@@ -173,7 +173,8 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
     from morphlab.solve.settings import Settings
     from morphlab.solve.stepper import Stepper
 
-    system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=2000))
+    # the paper's single-frame skin: the matrix whose fill this test measured
+    system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=2000, skin="paper"))
     st = Stepper.dynamic(system, Settings(**mo.SETTINGS, dense_max=0))
     p = st.problem(system.q0, system.v0, st.init_coef, None, st.time_arrays(0.0), 0.0, 0)
     data = np.zeros(system.nnz)

@@ -90,16 +90,19 @@ def test_sigint_from_outside_during_compiled_steps_is_a_clean_interrupt(tmp_path
     script.write_text(
         "import sys, morphlab as ml\n"
         "from morphlab import morphing as mo\n"
-        "print('ready', flush=True)\n"
+        "def looping(n, n_steps, t):\n"
+        "    if n == 20:\n"
+        "        print('looping', flush=True)\n"
         "try:\n"
-        "    ml.simulate(mo.build(mo.DEFAULTS, n_elements=300), t_end=60.0, dt=5e-4)\n"
+        "    ml.simulate(mo.build(mo.DEFAULTS, n_elements=300), t_end=60.0, dt=5e-4,\n"
+        "                progress=looping)\n"
         "except ml.Interrupted as e:\n"
         "    print('interrupted', e.result.n_t, e.result.status, flush=True)\n")
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    assert proc.stdout.readline().strip() == "ready"
+    assert proc.stdout.readline().strip() == "looping"  # the time loop has started
     import time
-    time.sleep(3.0)  # into the time loop
+    time.sleep(0.5)  # into the compiled steps
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
     assert "SystemError" not in err, err
