@@ -158,7 +158,20 @@ def _dot(grad, dofs, w, zero):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
+def _side_of(kind, dofs, ux0, uy0, q, v, a):
+    """:func:`_side` as a called function: the slide row's helpers call it four times each,
+    and inlining every call multiplied the constraint kernels' compile time."""
+    return _side(kind, dofs, ux0, uy0, q, v, a)
+
+
+@njit(cache=True)
+def _add_hessian_of(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
+    """:func:`_add_hessian` as a called function (see :func:`_side_of`)."""
+    _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data)
+
+
+@njit(cache=True)
 def _slide(dP, dQ, uP, uQ, q, v, a):
     """A slide row ``g = n(psi) . d``, ``d = r_P - r_Q``, ``psi = theta_Q + phi_Q + beta``:
     ``(g, vHv, grad, Hv, Ha, dvHv)`` as :func:`_side` gives them, but each of the last four a
@@ -169,10 +182,10 @@ def _slide(dP, dQ, uP, uQ, q, v, a):
     ``v^T H v = n.(v^T H_d v) + 2 psi' t.(D v) - psi'^2 n.d``.
     """
     zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
-    gxP, vxP, grxP, HvxP, HaxP, dvxP = _side(ROW_X, dP, uP[0], uP[1], q, v, a)
-    gyP, vyP, gryP, HvyP, HayP, dvyP = _side(ROW_Y, dP, uP[0], uP[1], q, v, a)
-    gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ = _side(ROW_X, dQ, uQ[0], uQ[1], q, v, a)
-    gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ = _side(ROW_Y, dQ, uQ[0], uQ[1], q, v, a)
+    gxP, vxP, grxP, HvxP, HaxP, dvxP = _side_of(ROW_X, dP, uP[0], uP[1], q, v, a)
+    gyP, vyP, gryP, HvyP, HayP, dvyP = _side_of(ROW_Y, dP, uP[0], uP[1], q, v, a)
+    gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ = _side_of(ROW_X, dQ, uQ[0], uQ[1], q, v, a)
+    gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ = _side_of(ROW_Y, dQ, uQ[0], uQ[1], q, v, a)
     psi = _psi(dQ, q, zero) + uQ[2]
     pv = _psi(dQ, v, zero)
     pa = _psi(dQ, a, zero)
@@ -207,24 +220,22 @@ def _slide(dP, dQ, uP, uQ, q, v, a):
     return g, vHv, (gP, gQ), (HvP, HvQ), (HaP, HaQ), (dvP, dvQ)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_slide_hessian(dP, dQ, uP, uQ, q, coef, hmap, i, data):
     """Add ``coef H`` of a slide row (:func:`_slide`) to ``data`` at ``hmap[i, r, c, j, k]``
     (``r``, ``c``: the sides of row and column; 0 = P, 1 = Q)."""
     zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
     psi = _psi(dQ, q, zero) + uQ[2]
     nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
-    _, _, grxP, _, _, _ = _side(ROW_X, dP, uP[0], uP[1], q, q, q)
-    _, _, gryP, _, _, _ = _side(ROW_Y, dP, uP[0], uP[1], q, q, q)
-    gxQ, _, grxQ, _, _, _ = _side(ROW_X, dQ, uQ[0], uQ[1], q, q, q)
-    gyQ, _, gryQ, _, _, _ = _side(ROW_Y, dQ, uQ[0], uQ[1], q, q, q)
-    gxP, _, _, _, _, _ = _side(ROW_X, dP, uP[0], uP[1], q, q, q)
-    gyP, _, _, _, _, _ = _side(ROW_Y, dP, uP[0], uP[1], q, q, q)
+    gxP, _, grxP, _, _, _ = _side_of(ROW_X, dP, uP[0], uP[1], q, q, q)
+    gyP, _, gryP, _, _, _ = _side_of(ROW_Y, dP, uP[0], uP[1], q, q, q)
+    gxQ, _, grxQ, _, _, _ = _side_of(ROW_X, dQ, uQ[0], uQ[1], q, q, q)
+    gyQ, _, gryQ, _, _, _ = _side_of(ROW_Y, dQ, uQ[0], uQ[1], q, q, q)
     nd = nx * (gxP - gxQ) + ny * (gyP - gyQ)
-    _add_hessian(ROW_X, dP, uP[0], uP[1], q, coef * nx, hmap, i, 0, data)
-    _add_hessian(ROW_Y, dP, uP[0], uP[1], q, coef * ny, hmap, i, 0, data)
-    _add_hessian(ROW_X, dQ, uQ[0], uQ[1], q, -coef * nx, hmap, i, 1, data)
-    _add_hessian(ROW_Y, dQ, uQ[0], uQ[1], q, -coef * ny, hmap, i, 1, data)
+    _add_hessian_of(ROW_X, dP, uP[0], uP[1], q, coef * nx, hmap, i, 0, data)
+    _add_hessian_of(ROW_Y, dP, uP[0], uP[1], q, coef * ny, hmap, i, 0, data)
+    _add_hessian_of(ROW_X, dQ, uQ[0], uQ[1], q, -coef * nx, hmap, i, 1, data)
+    _add_hessian_of(ROW_Y, dQ, uQ[0], uQ[1], q, -coef * ny, hmap, i, 1, data)
     tP = _lin(-ny, grxP, nx, gryP)
     tQ = _lin(-ny, grxQ, nx, gryQ)
     for j in (2, 5):
