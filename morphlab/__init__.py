@@ -22,7 +22,7 @@ from .errors import (
     SolverError,
     StudyError,
 )
-from .model.model import Beam, Model, RigidBody
+from .model import Beam, Model, RigidBody
 from .model.profiles import (
     Constant,
     Custom,

@@ -114,7 +114,7 @@ from .archive import (  # noqa: F401 - UnsavedProfile: loaded profiles are of th
 )
 from .compile.system import BodyInfo, System
 from .errors import FormatError
-from .model.model import Beam, Model, RigidBody
+from .model import Beam, Model, RigidBody
 
 FORMAT_VERSION = 1
 RESULT_FORMAT = "morphlab-result"

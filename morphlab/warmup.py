@@ -11,7 +11,7 @@ import numpy as np
 
 
 def _tiny_build(p):
-    from .model.model import Model
+    from .model import Model
     from .model.profiles import SmoothStep
 
     m = Model(gravity=(0.0, -9.81e3), name="warmup")

@@ -14,8 +14,8 @@ import numpy as np
 
 from ..kernels import beam as kbeam
 from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
+from ..model import Beam, RigidBody
 from ..model.frames import holding_frame, specs_of
-from ..model.model import Beam, RigidBody
 from .builder import Builder, compiles
 from .system import BodyInfo
 

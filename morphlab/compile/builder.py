@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ModelError
-from ..model.model import Body, Ground
+from ..model import Body, Ground
 from ..model.profiles import Profile
 from .system import BodyInfo
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..kernels.joints import ROW_ANGLE
-from ..model.model import Beam
+from ..model import Beam
 
 
 def _joint_hint(system, joint_name: str) -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
-from ..model.model import Beam, Model
+from ..model import Beam, Model
 from ..model.profiles import Profile
 from . import bodies, joints, loads  # noqa: F401 - they register the compile functions
 from .builder import Builder, compile_item

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y
-from ..model.model import Drive, Fix, Ground, Prismatic, Revolute, RigidBody, Weld
+from ..model import Drive, Fix, Ground, Prismatic, Revolute, RigidBody, Weld
 from .builder import Builder, compiles
 
 

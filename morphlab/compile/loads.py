@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model import Beam, Force, Torque
 from ..model.frames import drive_node
-from ..model.model import Beam, Force, Torque
 from .builder import Builder, compiles
 
 

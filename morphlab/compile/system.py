@@ -13,7 +13,7 @@ from ..errors import ModelError, MorphlabError, ProfileError
 from ..kernels import assemble as kassemble
 from ..kernels import joints as kjoints
 from ..kernels.system import DESIGN_FIELDS, SystemArrays
-from ..model.model import Model
+from ..model import Model
 
 
 @dataclass

@@ -3,21 +3,10 @@
 A model is a description only; :mod:`morphlab.compile` turns it into arrays.
 """
 
-from .model import (
-    Beam,
-    Body,
-    Drive,
-    Fix,
-    Force,
-    Ground,
-    Joint,
-    Model,
-    Prismatic,
-    Revolute,
-    RigidBody,
-    Torque,
-    Weld,
-)
+from .bodies import Beam, Body, Ground, RigidBody
+from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
+from .loads import Force, Torque
+from .model import Model
 from .profiles import (
     Constant,
     Custom,

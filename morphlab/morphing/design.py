@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SolverError
-from ..model.model import Model
+from ..model import Model
 from ..solve.statics import static
 from .leading_edge import (
     C_NODE,

@@ -91,7 +91,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import ModelError
-from ..model.model import Model
+from ..model import Model
 from ..model.profiles import Custom, SmoothStep
 from ..results import responses
 from ..results.responses import distance

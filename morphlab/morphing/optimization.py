@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
-from ..model.model import Model
+from ..model import Model
 from ..studies.problem import Constraint, Problem
 from . import leading_edge as le
 

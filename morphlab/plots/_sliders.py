@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.model import Beam, Ground, Prismatic
+from ..model import Beam, Ground, Prismatic
 
 
 def _block(centre, axis, size) -> np.ndarray:

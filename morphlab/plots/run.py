@@ -14,7 +14,7 @@ from matplotlib.patches import FancyArrowPatch, Polygon, Rectangle
 
 from ..compile.system import System
 from ..errors import ModelError
-from ..model.model import (
+from ..model import (
     Beam,
     Drive,
     Fix,

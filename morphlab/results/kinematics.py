@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.model import Beam
+from ..model import Beam
 
 # 3-point Gauss on [0, 1]: exact for v'^2 (degree 4)
 _XI = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])

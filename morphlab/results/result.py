@@ -14,7 +14,7 @@ from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
 from ..kernels.assemble import add_residual
 from ..kernels.joints import load_residual
-from ..model.model import Beam, RigidBody
+from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
 

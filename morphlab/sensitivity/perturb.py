@@ -19,7 +19,7 @@ from ..compile import System, compile_model, kernel_arrays, time_table
 from ..compile.system import SystemArrays, TimeTable
 from ..errors import MorphlabError, SensitivityError
 from ..kernels.system import DESIGN_FIELDS, DesignArrays
-from ..model.model import Model
+from ..model import Model
 
 #: The complex step (Martins, Sturdza & Alonso 2003): exact to round-off for ``h`` this small.
 CS_STEP = 1e-30

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..compile import System, compile_model
 from ..errors import ConvergenceError, ModelError, SolverError
-from ..model.model import Model
+from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
 from .linalg import DENSE_MAX

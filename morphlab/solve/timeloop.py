@@ -19,7 +19,7 @@ import numpy as np
 from ..compile import System, compile_model
 from ..compile.system import TimeTable, table_at, time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
-from ..model.model import Model
+from ..model import Model
 from ..results.checks import assess, report_findings
 from ..results.result import Result
 from .cache import announce_compilation
