@@ -30,7 +30,7 @@ from morphlab.sensitivity import Adjoint
 n_el, n_steps, budget = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 settings = dict(mo.SETTINGS)
 settings["dt"] = settings["t_end"] / n_steps
-build = lambda p: mo.build(p, n_elements=n_el)
+build = lambda p: mo.build(p, n_elements=n_el, skin="paper")
 p0 = dict(mo.DEFAULTS)
 t0 = time.perf_counter()
 res = ml.simulate(build(p0), **settings, store=("q",))

@@ -422,9 +422,17 @@ def main(argv=None) -> int:
     }
     for c in chosen:
         t0 = time.perf_counter()
-        results["cases"][c] = CASES[c](repeats, args.quick)
+        try:
+            results["cases"][c] = CASES[c](repeats, args.quick)
+        except (Exception, KeyboardInterrupt) as exc:  # keep the other cases' figures
+            results["cases"][c] = {"error": f"{type(exc).__name__}: {exc}"[:2000]}
+            print(f"[{c}: failed: {type(exc).__name__}]", file=sys.stderr)
         print(f"[{c}: {time.perf_counter() - t0:.1f} s]", file=sys.stderr)
     with open(args.out, "w", encoding="utf-8") as fh:
         json.dump(results, fh, indent=2)
-    print(table(results))
+    ok = {k: v for k, v in results["cases"].items() if "error" not in v}
+    print(table(dict(results, cases=ok)))
+    for k, v in results["cases"].items():
+        if "error" in v:
+            print(f"case {k} failed: {v['error']}")
     return 0
