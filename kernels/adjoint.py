@@ -25,10 +25,11 @@ from .direct import (
     add_explicit_residual,
     csc_residual_transposed,
     csc_transposed_product,
+    parts_of,
     split_matrices,
 )
 from .newton import solve_factored_transposed
-from .system import Parts, with_design
+from .system import with_design
 
 
 @njit(cache=True)
@@ -127,7 +128,6 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
     those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
     system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
-    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
     r_off, r_idx = touched
     n_x = grad.shape[0]
     m = grad.shape[1]
@@ -136,12 +136,9 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
     R0 = work[1]
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
-        pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
-                   c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
-                   t_idx[t_off[i]:t_off[i + 1]])
+        pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
             continue  # the variable changes only the initial state
-        flex = f_idx[f_off[i]:f_off[i + 1]]
         rows = r_idx[r_off[i]:r_off[i + 1]]
         for k in flex:
             flex_on[k] = True

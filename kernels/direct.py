@@ -134,6 +134,18 @@ def add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, 
                        ta_new[4], n_dof, R)
 
 
+@njit(cache=True, inline="always")
+def parts_of(parts, i, flex_on):
+    """:class:`~morphlab.kernels.system.Parts` of variable ``i`` from the packed ``parts``
+    (CSR over the variables, see :func:`explicit_loads`), with the mask ``flex_on``, and the
+    variable's flexible coordinates (to set in and clear from that mask)."""
+    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
+    pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
+               c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
+               t_idx[t_off[i]:t_off[i + 1]])
+    return pi, f_idx[f_off[i]:f_off[i + 1]]
+
+
 @njit(cache=True)
 def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, scale,
                    b0, b1, TAB, tab0, k_old, k_new, n_dof, pert, work, rhs):
@@ -170,18 +182,14 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     n = rhs.shape[0]
     s1 = (q1, v1, a1, l1)
     s0 = (q0, v0, a0, l0)
-    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
-        pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
-                   c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
-                   t_idx[t_off[i]:t_off[i + 1]])
+        pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
             continue  # the variable changes only the initial state
-        flex = f_idx[f_off[i]:f_off[i + 1]]
         for k in flex:
             flex_on[k] = True
         tai_old = (TAB[0][k_old, i], TAB[1][k_old, i], TAB[2][k_old, i], TAB[3][k_old, i],
