@@ -27,6 +27,7 @@ Figures must stay readable when printed in grey:
 """
 
 from ._common import DEFAULT_UNITS, arc_coordinate
+from .animation import animate
 from .charts import (
     node_sensitivities,
     profile_comparison,
@@ -35,8 +36,9 @@ from .charts import (
     timing_bars,
     timing_curves,
 )
+from .drawing import model
 from .optimization import design_path, optimization_history
-from .run import animate, energy, model, snapshots
+from .run import energy, snapshots
 
 __all__ = [
     "DEFAULT_UNITS", "animate", "arc_coordinate", "design_path", "energy", "model",
