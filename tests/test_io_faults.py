@@ -169,18 +169,18 @@ def test_incomplete_and_inconsistent_files_raise_format_error(sens, tmp_path):
 def test_write_errors_name_the_file(tmp_path, monkeypatch):
     """Disk full (simulated at the write) and a folder without write permission: an OSError
     naming the file, the errno kept, nothing left behind."""
-    import morphlab.archive as archive
+    import morphlab.io.container as container
 
-    real = archive.np.lib.format.write_array
+    real = container.np.lib.format.write_array
 
     def full(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(archive.np.lib.format, "write_array", full)
+    monkeypatch.setattr(container.np.lib.format, "write_array", full)
     with pytest.raises(OSError) as err:
         mio.save_arrays(tmp_path / "x.npz", {"a": np.ones(3)})
     assert err.value.errno == 28 and "x.npz" in str(err.value)
-    monkeypatch.setattr(archive.np.lib.format, "write_array", real)
+    monkeypatch.setattr(container.np.lib.format, "write_array", real)
     assert os.listdir(tmp_path) == []
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)

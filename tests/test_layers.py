@@ -3,7 +3,7 @@
 Stages in data-flow order (import order):
 
     kernels < errors < model < compile < results < solve < sensitivity < warmup
-            < plots, io, archive < studies < morphing < bench, cli
+            < plots, io < studies < morphing < bench, cli
 
 ``results`` comes before ``solve`` because the solver fills a Result. ``bench`` and
 ``morphing`` (the benchmark tools and the paper's application) are imported by no core
@@ -21,7 +21,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 STAGES = ["kernels", "errors", "model", "compile", "results", "solve", "sensitivity", "warmup",
-          ("plots", "io", "archive"), "studies", "morphing", ("bench", "cli")]
+          ("plots", "io"), "studies", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
     for name in (stage if isinstance(stage, tuple) else (stage,)):
