@@ -283,23 +283,15 @@ def scaling_ratio(grad: dict, p: dict = P0) -> float:
 
 
 # ------------------------------------------------------------------------------- the case
-def compare(repeats: int, n_elements: int, t_end: float = T_END,
-            n_steps: int = N_STEPS) -> dict:
-    """Agreement, primal timings and sensitivities for one mesh. (Long: one comparison step
-    after the other, each a few lines, read top to bottom.)"""
-    dt = t_end / n_steps
-    settings = dict(t_end=t_end, dt=dt, rho_inf=RHO_INF)
-    out = {"n_elements": n_elements, "steps": n_steps, "t_end": t_end, "dt": dt}
-
-    # --- agreement of the motion
-    system = ml.compile_model(build(P0, n_elements))
+def _agreement(system, mbs, tip, settings: dict, n_steps: int) -> tuple[dict, tuple]:
+    """Final tip positions of both codes, of the rigid pendulum, and their differences; with
+    Exudyn's Newton counts and tip of this first solve (to check that re-solves repeat it)."""
     res = ml.simulate(system, **settings)
-    _sc, mbs, tip = exudyn_system(P0, n_elements)
-    ex_counts = exudyn_solve(mbs, exudyn_settings(t_end, n_steps, True))
+    ex_counts = exudyn_solve(mbs, exudyn_settings(settings["t_end"], n_steps, True))
     tip_ml, tip_ex = morphlab_tip(res), exudyn_tip_position(mbs, tip)
-    tip_rigid = rigid_tip(t_end)
+    tip_rigid = rigid_tip(settings["t_end"])
     el_ml, el_ex = tip_ml - tip_rigid, tip_ex - tip_rigid
-    out["agreement"] = {
+    agreement = {
         "tip_morphlab_mm": tip_ml.tolist(), "tip_exudyn_mm": tip_ex.tolist(),
         "tip_rigid_pendulum_mm": tip_rigid.tolist(),
         "tip_difference_mm": float(np.linalg.norm(tip_ml - tip_ex)),
@@ -312,8 +304,14 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
         "elastic_offset_relative_difference": float(np.linalg.norm(el_ml - el_ex)
                                                     / np.linalg.norm(el_ex)),
     }
+    return agreement, (ex_counts, tip_ex)
 
-    # --- primal timings (solve only, and with the model built)
+
+def _primal_timings(system, mbs, tip, first: tuple, n_elements: int, settings: dict,
+                    n_steps: int, repeats: int) -> dict:
+    """Run times of both codes, solve only and with the model built, full and modified
+    Newton; ``first``: Exudyn's counts and tip of the first solve (:func:`_agreement`)."""
+    t_end = settings["t_end"]
     t_ml, res = _timeit(lambda: ml.simulate(system, **settings), repeats)
     t_ml_b, _ = _timeit(lambda: ml.simulate(build(P0, n_elements), **settings), repeats)
     # like for like with Exudyn's default: the factorization kept over iterations and steps
@@ -326,7 +324,7 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
     t_ex_full, c_full = _timeit(lambda: exudyn_solve(mbs, ex_full), repeats)
     t_ex_b, _ = _timeit(lambda: exudyn_tip(P0, n_elements, t_end, n_steps, True), repeats)
     per = float(n_steps)
-    out["primal"] = {
+    primal = {
         "morphlab": {"run_s": t_ml, "per_step_s": _per_step(t_ml, n_steps),
                      "with_build_s": t_ml_b,
                      "newton_iterations_per_step": float(np.mean(res.newton_iterations[1:]))},
@@ -342,17 +340,23 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
             "newton_iterations_per_step": c_full["newton_iterations"] / per,
             "jacobians_per_step": c_full["jacobians"] / per},
     }
-    out["primal"]["ratios"] = {
+    primal["ratios"] = {
         "morphlab_over_exudyn_modified_newton": t_ml["median"] / t_ex_mod["median"],
         "morphlab_over_exudyn_full_newton": t_ml["median"] / t_ex_full["median"],
         "morphlab_modified_over_exudyn_modified_newton": (t_ml_mod["median"]
                                                           / t_ex_mod["median"]),
     }
     # the timed re-solves of the same Exudyn system start again from the initial state
-    out["primal"]["exudyn_resolve_repeatable"] = bool(
+    ex_counts, tip_ex = first
+    primal["exudyn_resolve_repeatable"] = bool(
         ex_counts == c_mod and np.array_equal(tip_again, tip_ex))
+    return primal
 
-    # --- sensitivities of the final tip y to t and E
+
+def _sensitivities(n_elements: int, settings: dict, n_steps: int, repeats: int,
+                   primal: dict) -> dict:
+    """Gradients of the final tip y to t and E: morphlab direct and forward differences,
+    Exudyn forward differences; their agreement, the scaling law and the run times."""
     build_n = _Builder(n_elements)
     resp = {"tip_y": tip_y}
     t_dir, sens = _timeit(lambda: ml.sensitivities(build_n, P0, resp, method="direct",
@@ -360,11 +364,12 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
     t_fd_ml, sens_fd = _timeit(lambda: ml.sensitivities(
         build_n, P0, resp, method="forward-difference", step=FD_STEP, **settings),
         max(1, repeats // 2))
-    t_fd_ex, (y_ex, grad_ex) = _timeit(lambda: exudyn_gradient(P0, n_elements, t_end, n_steps),
-                                       max(1, repeats // 2))
+    t_fd_ex, (y_ex, grad_ex) = _timeit(
+        lambda: exudyn_gradient(P0, n_elements, settings["t_end"], n_steps),
+        max(1, repeats // 2))
     g_dir = {k: float(v) for k, v in sens.gradients["tip_y"].items()}
     g_fd_ml = {k: float(v) for k, v in sens_fd.gradients["tip_y"].items()}
-    out["sensitivities"] = {
+    return {
         "response": "final tip y [mm]", "variables": {"t": "thickness [mm]", "E": "E [MPa]"},
         "values_mm": {"morphlab": float(np.real(sens.values["tip_y"])), "exudyn": y_ex},
         "gradient": {"morphlab_direct": g_dir, "morphlab_forward_difference": g_fd_ml,
@@ -381,11 +386,27 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
                      "exudyn_forward_difference": t_fd_ex},
         "ratios": {
             "exudyn_fd_over_morphlab_direct": t_fd_ex["median"] / t_dir["median"],
-            "morphlab_direct_over_morphlab_primal": t_dir["median"] / t_ml_b["median"],
-            "exudyn_fd_over_exudyn_primal": t_fd_ex["median"] / t_ex_b["median"],
+            "morphlab_direct_over_morphlab_primal": (
+                t_dir["median"] / primal["morphlab"]["with_build_s"]["median"]),
+            "exudyn_fd_over_exudyn_primal": (
+                t_fd_ex["median"] / primal["exudyn_modified_newton"]["with_build_s"]["median"]),
         },
     }
-    return out
+
+
+def compare(repeats: int, n_elements: int, t_end: float = T_END,
+            n_steps: int = N_STEPS) -> dict:
+    """Agreement, primal timings and sensitivities for one mesh, in this order (the timed
+    Exudyn re-solves are checked against the first solve)."""
+    dt = t_end / n_steps
+    settings = dict(t_end=t_end, dt=dt, rho_inf=RHO_INF)
+    system = ml.compile_model(build(P0, n_elements))
+    _sc, mbs, tip = exudyn_system(P0, n_elements)  # _sc owns mbs: kept alive to the end
+    agreement, first = _agreement(system, mbs, tip, settings, n_steps)
+    primal = _primal_timings(system, mbs, tip, first, n_elements, settings, n_steps, repeats)
+    return {"n_elements": n_elements, "steps": n_steps, "t_end": t_end, "dt": dt,
+            "agreement": agreement, "primal": primal,
+            "sensitivities": _sensitivities(n_elements, settings, n_steps, repeats, primal)}
 
 
 class _Builder:
