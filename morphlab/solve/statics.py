@@ -18,6 +18,16 @@ from .settings import Settings
 from .stepper import Stepper
 
 
+def _check_args(steps, t, tol) -> None:
+    if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
+            and steps >= 1):
+        raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
+    if not (_is_real(t) and np.isfinite(t)):
+        raise ModelError(f"t must be a finite number, got {t!r}")
+    if not (_is_real(tol) and 0 < tol < 1):
+        raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
+
+
 def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
            max_iter: int = 30, q_start=None, dense_max: int = DENSE_MAX,
            kinematic_tol: float | None = 1e-4):
@@ -56,14 +66,10 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     the coefficients :data:`morphlab.solve.stepper.STATIC`: inertia weight 0, the constraint
     rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing for the
     displacement from the previous equilibrium (``beta h² = 1``).
+
+    (Long for its documentation: the code is the continuation loop and the path's result.)
     """
-    if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
-            and steps >= 1):
-        raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
-    if not (_is_real(t) and np.isfinite(t)):
-        raise ModelError(f"t must be a finite number, got {t!r}")
-    if not (_is_real(tol) and 0 < tol < 1):
-        raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
+    _check_args(steps, t, tol)
     kinematic_tol = check_kinematic_tol(kinematic_tol)
     system = model if isinstance(model, System) else compile_model(model)
     dt = system.dtype

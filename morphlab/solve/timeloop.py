@@ -48,6 +48,34 @@ class StepInfo:
     table: TimeTable | None = None
 
 
+def _check_options(settings: Settings, observer, max_halvings) -> None:
+    """Refuse the options that contradict each other or an observer; validate ``settings``."""
+    if settings.newton == "modified" and observer is not None:
+        raise ModelError("newton='modified' cannot be combined with an observer: the "
+                         "sensitivities need the exact Newton matrix of every step")
+    if max_halvings and observer is not None:
+        raise ModelError("automatic step reduction cannot be combined with an observer "
+                         "(sensitivity runs need one fixed step sequence)")
+    if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
+        raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
+    settings.validate()
+
+
+def _time_table(system: System, settings: Settings, t: np.ndarray,
+                hist: HistoryStore) -> tuple[TimeTable, ProfileError | None]:
+    """The time table of the run, and None; when a time profile fails at step ``k > 0``, the
+    table of the steps before it and that error (raised at once, with an empty result, at
+    step 0)."""
+    try:
+        return time_table(system, t), None
+    except ProfileError as err:
+        if err.step == 0:
+            err.result = Result(system=system, settings=settings, status="failed",
+                                message=str(err), **hist.result_fields(None))
+            raise
+        return time_table(system, t[:err.step]), err
+
+
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
               progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
               polish: int = 0, max_halvings: int = 0, store=HISTORIES, memmap=None) -> Result:
@@ -63,31 +91,16 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     results stay on the regular grid and ``result.step_reductions`` lists ``(t, n_substeps)``
     of each retried step. ``store``, ``memmap``: :class:`~morphlab.solve.store.HistoryStore`.
     """
-    if settings.newton == "modified" and observer is not None:
-        raise ModelError("newton='modified' cannot be combined with an observer: the "
-                         "sensitivities need the exact Newton matrix of every step")
-    if max_halvings and observer is not None:
-        raise ModelError("automatic step reduction cannot be combined with an observer "
-                         "(sensitivity runs need one fixed step sequence)")
-    if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
-        raise ModelError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
-    settings.validate()
+    _check_options(settings, observer, max_halvings)
     announce_compilation()
     n_steps = settings.n_steps
     check_memory(system, n_steps + 1, store, memmap)
     t = settings.t_start + settings.h * np.arange(n_steps + 1)
     hist = HistoryStore(system, t, store, memmap)
     stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
-    try:
-        table, failure = time_table(system, t), None
-    except ProfileError as err:  # run the steps before the failing time, then raise it
-        failure = err
-        if err.step == 0:
-            err.result = Result(system=system, settings=settings, status="failed",
-                                message=str(err), **hist.result_fields(None))
-            raise
-        table = time_table(system, t[:err.step])
-        n_steps = err.step - 1
+    table, failure = _time_table(system, settings, t, hist)
+    if failure is not None:  # run the steps before the failing time, then raise it
+        n_steps = failure.step - 1
     reductions: list = []
     t_wall = _time.perf_counter()
 
