@@ -54,12 +54,11 @@ reported.
 
 from __future__ import annotations
 
-import statistics
-import time
-
 import numpy as np
 
 import morphlab as ml
+
+from ..studies.timing import timed
 
 # morphlab units: mm, t, s, N, MPa
 LENGTH = 500.0  # [mm]
@@ -97,25 +96,9 @@ NOTES = (
 )
 
 
-def _stats(times: list[float]) -> dict:
-    return {"median": statistics.median(times), "min": min(times), "max": max(times),
-            "runs": len(times)}
-
-
 def _per_step(s: dict, n_steps: int) -> dict:
     return {"median": s["median"] / n_steps, "min": s["min"] / n_steps,
             "max": s["max"] / n_steps, "runs": s["runs"]}
-
-
-def _timeit(fn, repeats: int) -> tuple[dict, object]:
-    """Warm-up call, then ``repeats`` timed calls; returns the statistics and the last value."""
-    out = fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return _stats(times), out
 
 
 # ------------------------------------------------------------------------------ morphlab side
@@ -312,17 +295,17 @@ def _primal_timings(system, mbs, tip, first: tuple, n_elements: int, settings: d
     """Run times of both codes, solve only and with the model built, full and modified
     Newton; ``first``: Exudyn's counts and tip of the first solve (:func:`_agreement`)."""
     t_end = settings["t_end"]
-    t_ml, res = _timeit(lambda: ml.simulate(system, **settings), repeats)
-    t_ml_b, _ = _timeit(lambda: ml.simulate(build(P0, n_elements), **settings), repeats)
+    t_ml, res = timed(lambda: ml.simulate(system, **settings), repeats)
+    t_ml_b, _ = timed(lambda: ml.simulate(build(P0, n_elements), **settings), repeats)
     # like for like with Exudyn's default: the factorization kept over iterations and steps
-    t_ml_mod, res_mod = _timeit(lambda: ml.simulate(system, newton="modified", **settings),
+    t_ml_mod, res_mod = timed(lambda: ml.simulate(system, newton="modified", **settings),
                                 repeats)
     ex_mod = exudyn_settings(t_end, n_steps, True)
     ex_full = exudyn_settings(t_end, n_steps, False)
-    t_ex_mod, c_mod = _timeit(lambda: exudyn_solve(mbs, ex_mod), repeats)
+    t_ex_mod, c_mod = timed(lambda: exudyn_solve(mbs, ex_mod), repeats)
     tip_again = exudyn_tip_position(mbs, tip)
-    t_ex_full, c_full = _timeit(lambda: exudyn_solve(mbs, ex_full), repeats)
-    t_ex_b, _ = _timeit(lambda: exudyn_tip(P0, n_elements, t_end, n_steps, True), repeats)
+    t_ex_full, c_full = timed(lambda: exudyn_solve(mbs, ex_full), repeats)
+    t_ex_b, _ = timed(lambda: exudyn_tip(P0, n_elements, t_end, n_steps, True), repeats)
     per = float(n_steps)
     primal = {
         "morphlab": {"run_s": t_ml, "per_step_s": _per_step(t_ml, n_steps),
@@ -359,12 +342,12 @@ def _sensitivities(n_elements: int, settings: dict, n_steps: int, repeats: int,
     Exudyn forward differences; their agreement, the scaling law and the run times."""
     build_n = _Builder(n_elements)
     resp = {"tip_y": tip_y}
-    t_dir, sens = _timeit(lambda: ml.sensitivities(build_n, P0, resp, method="direct",
+    t_dir, sens = timed(lambda: ml.sensitivities(build_n, P0, resp, method="direct",
                                                    **settings), repeats)
-    t_fd_ml, sens_fd = _timeit(lambda: ml.sensitivities(
+    t_fd_ml, sens_fd = timed(lambda: ml.sensitivities(
         build_n, P0, resp, method="forward-difference", step=FD_STEP, **settings),
         max(1, repeats // 2))
-    t_fd_ex, (y_ex, grad_ex) = _timeit(
+    t_fd_ex, (y_ex, grad_ex) = timed(
         lambda: exudyn_gradient(P0, n_elements, settings["t_end"], n_steps),
         max(1, repeats // 2))
     g_dir = {k: float(v) for k, v in sens.gradients["tip_y"].items()}

@@ -36,7 +36,6 @@ import json
 import os
 import platform
 import pstats
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -53,25 +52,10 @@ from ..sensitivity.perturb import CS_STEP, complex_systems, pseudo_load_data
 from ..solve.settings import Settings
 from ..solve.superlu import PIVOT_THRESHOLD
 from ..solve.timeloop import integrate
-from ..studies.timing import interleaved_times
+from ..studies.timing import interleaved_times, time_stats, timed
 from .memory import case_memory
 from .report import table
 from .variables import case_variables
-
-
-def _stats(times: list[float]) -> dict:
-    return {"median": statistics.median(times), "min": min(times), "max": max(times),
-            "runs": len(times)}
-
-
-def _timeit(fn, repeats: int) -> dict:
-    fn()  # warm-up (compilation, caches)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return _stats(times)
 
 
 def _rounds(fns: dict, repeats: int) -> dict:
@@ -79,7 +63,7 @@ def _rounds(fns: dict, repeats: int) -> dict:
     (:func:`interleaved_times`; the ratios are formed within one round set)."""
     for fn in fns.values():
         fn()
-    return {k: _stats(v) for k, v in interleaved_times(fns, repeats).items()}
+    return {k: time_stats(v) for k, v in interleaved_times(fns, repeats).items()}
 
 
 def _morphing():
@@ -121,7 +105,7 @@ def case_morphing(repeats: int, quick: bool) -> dict:
         "direct": sens("direct"),
         "direct_fd": sens("direct-fd"),
     }, repeats))
-    out["finite_difference"] = _timeit(sens("forward-difference"), max(1, repeats // 2))
+    out["finite_difference"] = timed(sens("forward-difference"), max(1, repeats // 2))[0]
     prim = out["primal"]["median"]
     solver = out["primal_solver_only"]["median"]
     out["ratios"] = {
@@ -160,15 +144,15 @@ def _fresh(code: str, env: dict | None = None) -> float:
 
 def case_startup(repeats: int, quick: bool) -> dict:
     out = {}
-    out["import"] = _stats([_fresh("import morphlab") for _ in range(repeats)])
+    out["import"] = time_stats([_fresh("import morphlab") for _ in range(repeats)])
     cold = []
     for _ in range(1 if quick else 2):
         with tempfile.TemporaryDirectory() as cache:
             env = dict(os.environ, NUMBA_CACHE_DIR=cache)
             cold.append(_fresh(_FIRST_RESULT, env))
-    out["cold_first_result"] = _stats(cold)
+    out["cold_first_result"] = time_stats(cold)
     _fresh(_FIRST_RESULT)  # fill the default cache
-    out["warm_first_result"] = _stats([_fresh(_FIRST_RESULT) for _ in range(repeats)])
+    out["warm_first_result"] = time_stats([_fresh(_FIRST_RESULT) for _ in range(repeats)])
     return out
 
 
@@ -284,7 +268,7 @@ def _per_call_us(fn, repeats: int, calls: int = 300) -> dict:
         for _ in range(calls):
             fn()
         times.append(1e6 * (time.perf_counter() - t0) / calls)
-    return _stats(times)
+    return time_stats(times)
 
 
 def case_floor(repeats: int, quick: bool) -> dict:

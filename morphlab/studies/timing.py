@@ -23,3 +23,21 @@ def median_time(fn: Callable[[], object], repeats: int) -> tuple[float, list[flo
     """Median and list of the wall times [s] of ``repeats`` calls of ``fn``."""
     times = interleaved_times({"fn": fn}, repeats)["fn"]
     return statistics.median(times), times
+
+
+def time_stats(times: list[float]) -> dict:
+    """``{"median", "min", "max", "runs"}`` of wall times [s]."""
+    return {"median": statistics.median(times), "min": min(times), "max": max(times),
+            "runs": len(times)}
+
+
+def timed(fn: Callable[[], object], repeats: int) -> tuple[dict, object]:
+    """A warm-up call (compilation, caches), then ``repeats`` timed calls: their
+    :func:`time_stats` and the value of the last call."""
+    out = fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return time_stats(times), out
