@@ -45,6 +45,9 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     ``Kd = K (q_f + beta_d q_f')`` (one product: ``beta_d`` is the body's); ``full=True`` (the
     Jacobian, which takes ``K`` itself) forms ``Mq, Mv, Sq, Sv, Sa`` and no ``Kd``.
 
+    ``full`` is passed as ``np.bool_``, a run-time value: a literal ``True``/``False`` would make
+    Numba compile this function twice.
+
     Only the elements listed in ``elems`` contribute (all of them, except when a sensitivity
     pseudo-load evaluates just the parts a design variable changes).
 
@@ -185,7 +188,7 @@ def body_residual(S, q, v, a, wm, wf, parts, R):
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
         q, v, a, flex_dof, S.elem_body, S.body_damp, S.elem_fdof, S.elem_M, S.elem_St, S.elem_K,
-        elems, n_flex, False, R
+        elems, n_flex, np.bool_(False), R
     )
     gx = S.gravity[0]
     gy = S.gravity[1]
@@ -277,7 +280,7 @@ def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-        np.arange(elem_fdof.shape[0]), n_flex, True, data
+        np.arange(elem_fdof.shape[0]), n_flex, np.bool_(True), data
     )
     all_flex = np.ones(n_flex, dtype=np.bool_)
     gx = gravity[0]

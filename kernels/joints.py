@@ -159,16 +159,21 @@ def _dot(grad, dofs, w, zero):
 
 
 @njit(cache=True)
-def _side_of(kind, dofs, ux0, uy0, q, v, a):
-    """:func:`_side` as a called function: the slide row's helpers call it four times each,
-    and inlining every call multiplied the constraint kernels' compile time."""
-    return _side(kind, dofs, ux0, uy0, q, v, a)
+def _point_of(dofs, ux0, uy0, q, v, a):
+    """:func:`_side` of the x and the y component of one material point, as a called
+    function: the slide row's helpers need both components of both sides, and inlining every
+    call (or calling with the kind as a compile-time constant, which Numba specializes on)
+    multiplied the constraint kernels' compile time."""
+    return (_side(ROW_X, dofs, ux0, uy0, q, v, a), _side(ROW_Y, dofs, ux0, uy0, q, v, a))
 
 
 @njit(cache=True)
-def _add_hessian_of(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
-    """:func:`_add_hessian` as a called function (see :func:`_side_of`)."""
-    _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data)
+def _add_point_hessian(dofs, ux0, uy0, q, cx, cy, hmap, i, side, data):
+    """Add ``cx H_x + cy H_y`` of one material point (:func:`_add_hessian` of both
+    components) at ``hmap[i, side, side, j, k]``; ``side`` a run-time value (see
+    :func:`_point_of`)."""
+    _add_hessian(ROW_X, dofs, ux0, uy0, q, cx, hmap, i, side, data)
+    _add_hessian(ROW_Y, dofs, ux0, uy0, q, cy, hmap, i, side, data)
 
 
 @njit(cache=True)
@@ -182,10 +187,10 @@ def _slide(dP, dQ, uP, uQ, q, v, a):
     ``v^T H v = n.(v^T H_d v) + 2 psi' t.(D v) - psi'^2 n.d``.
     """
     zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
-    gxP, vxP, grxP, HvxP, HaxP, dvxP = _side_of(ROW_X, dP, uP[0], uP[1], q, v, a)
-    gyP, vyP, gryP, HvyP, HayP, dvyP = _side_of(ROW_Y, dP, uP[0], uP[1], q, v, a)
-    gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ = _side_of(ROW_X, dQ, uQ[0], uQ[1], q, v, a)
-    gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ = _side_of(ROW_Y, dQ, uQ[0], uQ[1], q, v, a)
+    (gxP, vxP, grxP, HvxP, HaxP, dvxP), (gyP, vyP, gryP, HvyP, HayP, dvyP) = _point_of(
+        dP, uP[0], uP[1], q, v, a)
+    (gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ), (gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ) = _point_of(
+        dQ, uQ[0], uQ[1], q, v, a)
     psi = _psi(dQ, q, zero) + uQ[2]
     pv = _psi(dQ, v, zero)
     pa = _psi(dQ, a, zero)
@@ -227,15 +232,14 @@ def _add_slide_hessian(dP, dQ, uP, uQ, q, coef, hmap, i, data):
     zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
     psi = _psi(dQ, q, zero) + uQ[2]
     nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
-    gxP, _, grxP, _, _, _ = _side_of(ROW_X, dP, uP[0], uP[1], q, q, q)
-    gyP, _, gryP, _, _, _ = _side_of(ROW_Y, dP, uP[0], uP[1], q, q, q)
-    gxQ, _, grxQ, _, _, _ = _side_of(ROW_X, dQ, uQ[0], uQ[1], q, q, q)
-    gyQ, _, gryQ, _, _, _ = _side_of(ROW_Y, dQ, uQ[0], uQ[1], q, q, q)
+    (gxP, _, grxP, _, _, _), (gyP, _, gryP, _, _, _) = _point_of(dP, uP[0], uP[1], q, q, q)
+    (gxQ, _, grxQ, _, _, _), (gyQ, _, gryQ, _, _, _) = _point_of(dQ, uQ[0], uQ[1], q, q, q)
     nd = nx * (gxP - gxQ) + ny * (gyP - gyQ)
-    _add_hessian_of(ROW_X, dP, uP[0], uP[1], q, coef * nx, hmap, i, 0, data)
-    _add_hessian_of(ROW_Y, dP, uP[0], uP[1], q, coef * ny, hmap, i, 0, data)
-    _add_hessian_of(ROW_X, dQ, uQ[0], uQ[1], q, -coef * nx, hmap, i, 1, data)
-    _add_hessian_of(ROW_Y, dQ, uQ[0], uQ[1], q, -coef * ny, hmap, i, 1, data)
+    for side in range(2):
+        sg = 1.0 if side == 0 else -1.0
+        d, u = (dP, uP) if side == 0 else (dQ, uQ)
+        _add_point_hessian(d, u[0], u[1], q, sg * coef * nx, sg * coef * ny, hmap, i, side,
+                           data)
     tP = _lin(-ny, grxP, nx, gryP)
     tQ = _lin(-ny, grxQ, nx, gryQ)
     for j in (2, 5):
@@ -276,6 +280,15 @@ def _row(kind, dofs0, dofs1, u0, u1, q, v, a):
     g1, vHv1, gr1, Hv1, Ha1, dv1 = _point_side(kind, dofs1, u1, q, v, a)
     return (g0 - g1, vHv0 - vHv1, (gr0, _neg(gr1)), (Hv0, _neg(Hv1)), (Ha0, _neg(Ha1)),
             (dv0, _neg(dv1)))
+
+
+@njit(cache=True)
+def _row_of(kind, dofs0, dofs1, u0, u1, q, v, a):
+    """:func:`_row` as a called function, for the Newton matrix and the violation diagnostics:
+    the residual inlines the row (it runs every Newton iteration and needs only ``g``, ``vHv``
+    and ``grad``); compiling the whole row inline into every kernel that reads it was the
+    largest share of a cold start."""
+    return _row(kind, dofs0, dofs1, u0, u1, q, v, a)
 
 
 @njit(cache=True, inline="always")
@@ -336,7 +349,7 @@ def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, d
         kind = con_kind[i]
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
         u = (_u(con_u0, i, 0), _u(con_u0, i, 1))
-        _, _, grad, Hv, Ha, dvHv = _row(kind, dofs[0], dofs[1], u[0], u[1], q, v, a)
+        _, _, grad, Hv, Ha, dvHv = _row_of(kind, dofs[0], dofs[1], u[0], u[1], q, v, a)
         for side in range(2):
             for j in range(6):
                 if dofs[side][j] < 0:
@@ -370,8 +383,8 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
     zero = q[0] * 0.0
     for i in range(con_kind.shape[0]):
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, _, grad, _, _, _ = _row(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
-                                   _u(con_u0, i, 1), q, v, v)
+        g, _, grad, _, _, _ = _row_of(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
+                                      _u(con_u0, i, 1), q, v, v)
         Jv = zero
         for side in range(2):
             for j in range(6):
