@@ -6,6 +6,7 @@ analysis in the design of a morphing leading edge for high-performance sailplane
 """
 
 from . import io
+from ._version import __version__
 from .compile import System, compile_model
 from .errors import (
     ConvergenceError,
@@ -41,8 +42,6 @@ from .solve.settings import Settings, State
 from .solve.statics import static
 from .solve.timeloop import simulate
 from .warmup import warmup
-
-__version__ = "0.1.0"
 
 # The application (the paper's model) and the figures are loaded on first use: ``import
 # morphlab`` loads neither the morphing study nor matplotlib.

@@ -20,7 +20,7 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-STAGES = ["kernels", "errors", "model", "compile", "results", "solve", "sensitivity", "warmup",
+STAGES = ["kernels", ("errors", "_version"), "model", "compile", "results", "solve", "sensitivity", "warmup",
           ("plots", "io"), "studies", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
@@ -79,9 +79,14 @@ def _violations():
             continue
         for target, line in _imports(dotted, path):
             other = _stage(target)
-            if other is None or other == own:
+            if other == own:
                 continue
-            if other not in RANK:  # a name imported from the package itself, e.g. __version__
+            if other is None or other not in RANK:
+                # the package's top level (``import morphlab``, ``from .. import name``): it
+                # imports every core stage, so only the application and the tools may use it
+                if RANK[own] < RANK["morphing"]:
+                    bad.append(f"{path.relative_to(ROOT)}:{line} ({own}) imports the package "
+                               f"top level ({target})")
                 continue
             if RANK[other] > RANK[own]:
                 bad.append(f"{path.relative_to(ROOT)}:{line} ({own}) imports {target} ({other})")
@@ -100,6 +105,18 @@ def test_the_layer_check_sees_an_upward_import(tmp_path, monkeypatch):
     (tmp_path / "kernels").mkdir()
     monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
     assert _violations() == ["morphlab/model/bad.py:2 (model) imports morphlab.solve (solve)"]
+
+
+def test_the_layer_check_sees_the_package_top_level(tmp_path, monkeypatch):
+    """A core module reading a name from the package's top level (which imports every stage)
+    is reported; the application may."""
+    for stage, text in (("io", "from .. import __version__\n"), ("morphing", "import morphlab\n")):
+        (tmp_path / "morphlab" / stage).mkdir(parents=True)
+        (tmp_path / "morphlab" / stage / "m.py").write_text(text)
+    (tmp_path / "kernels").mkdir()
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    assert _violations() == ["morphlab/io/m.py:1 (io) imports the package top level "
+                             "(morphlab.__version__)"]
 
 
 def test_kernels_import_nothing_of_morphlab():

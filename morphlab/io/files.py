@@ -20,8 +20,6 @@ METADATA = "metadata"
 
 def morphlab_version() -> str:
     """The version of morphlab writing a file."""
-    from .. import __version__  # the package defines it after importing io
-
     return __version__
 
 
