@@ -113,7 +113,8 @@ def compile_beam(body: Beam, b: Builder) -> None:
     offsets = body.frame_offsets
     elements = slice(frames[0][4].start, frames[-1][4].stop)
     if rec is not None and np.iscomplexobj(body.nodes):  # complex, as from complex nodes
-        frames[0] = (*frames[0][:3], np.complex128(frames[0][3]), frames[0][4])
+        ref, nd, Xb, th0, rows = frames[0]
+        frames[0] = (ref, nd, Xb.astype(np.complex128), np.complex128(th0), rows)
         angle0 = angle0.astype(np.complex128)
     b.bodies[body.name] = info = BodyInfo(
         body.name, index, frames[0][0], frames[0][3], "beam", node_dofs,
