@@ -16,6 +16,7 @@ from ..kernels import beam as kbeam
 from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
 from ..model import Beam, RigidBody
 from ..model.frames import holding_frame, specs_of
+from . import incremental as inc
 from .builder import Builder, compiles
 from .system import BodyInfo
 
@@ -65,34 +66,62 @@ class _FrameJoint(NamedTuple):
 def compile_beam(body: Beam, b: Builder) -> None:
     """A beam as one linear FFRF body per frame (``docs/frames.md``), neighbours joined at
     their shared node by three rows ``<beam>.frame<f>.x|y|r``; a single frame keeps the
-    beam's own name for its DOFs, several are named ``<beam>#<f>``."""
+    beam's own name for its DOFs, several are named ``<beam>#<f>``. With a record of the
+    nominal compile (a perturbed design, :mod:`morphlab.compile.incremental`) only the
+    frames whose inputs changed are compiled, the others copied."""
     specs = specs_of(body)
-    n_node = body.nodes.shape[0]
-    node_dofs = -np.ones((n_node, 3), dtype=np.int64)
-    node_ref = np.zeros((n_node, 3), dtype=np.int64)
-    Xc = np.zeros((n_node, 2), dtype=np.result_type(body.nodes, float))
-    angle0 = [None] * n_node
-    frames = []
-    for f, spec in enumerate(specs):
-        name = body.name if len(specs) == 1 else f"{body.name}#{f}"
-        frame = _compile_frame(body, spec, name, b)
-        frames.append(frame)
+    n_node, n_fr = body.nodes.shape[0], len(specs)
+    rec = b.prior.get(body.name) if b.prior is not None else None
+    redo = None
+    if rec is not None and inc.snapshot(b) == rec.marks[0]:
+        redo = inc.changed_frames(body, rec)
+    if redo is None:  # every frame compiled
+        redo, frames = range(n_fr), [None] * n_fr
+        node_dofs = -np.ones((n_node, 3), dtype=np.int64)
+        node_ref = np.zeros((n_node, 3), dtype=np.int64)
+        Xc = np.zeros((n_node, 2), dtype=np.result_type(body.nodes, float))
+        angle0 = np.zeros(n_node, dtype=object)
+        rec = None
+    else:  # the nominal's frames and node tables, the changed frames' entries replaced
+        frames = list(rec.frames)
+        node_dofs, node_ref = rec.info.node_dofs.copy(), rec.info.node_ref.copy()
+        X0 = rec.info.X if n_fr > 1 else rec.frames[0][2]
+        Xc = np.array(X0, dtype=np.result_type(body.nodes, float))
+        angle0 = np.array(rec.info.node_angle0, dtype=object)
+    marks = [inc.snapshot(b)] if b.record is not None else None
+    done = 0
+    for f in redo:
+        if rec is not None:
+            inc.extend_from(b, rec.builder, rec.marks[done], rec.marks[f])
+        spec = specs[f]
+        name = body.name if n_fr == 1 else f"{body.name}#{f}"
+        frames[f] = frame = _compile_frame(body, spec, name, b)
+        done = f + 1
+        if marks is not None:
+            marks.append(inc.snapshot(b))
         ref, nd, Xb, th0, _ = frame
-        last = spec.last if f == len(specs) - 1 else spec.last - 1
+        last = spec.last if f == n_fr - 1 else spec.last - 1
         rows = slice(spec.first, last + 1)
         node_dofs[rows] = nd[: last + 1 - spec.first]
         node_ref[rows] = ref
         Xc[rows] = Xb[: last + 1 - spec.first]
-        angle0[rows] = [th0] * (last + 1 - spec.first)
-    for f in range(1, len(frames)):
-        _join(b, _FrameJoint(f"{body.name}.frame{f}"), frames[f - 1], frames[f])
+        angle0[rows] = th0
+    if rec is not None:
+        inc.extend_from(b, rec.builder, rec.marks[done], rec.marks[n_fr])
+    _join_frames(body, b, frames, rec, redo, marks)
     index = b.bodies_count - len(frames)
     offsets = body.frame_offsets
     elements = slice(frames[0][4].start, frames[-1][4].stop)
-    b.bodies[body.name] = BodyInfo(
+    if rec is not None and np.iscomplexobj(body.nodes):  # complex, as from complex nodes
+        ref, nd, Xb, th0, rows = frames[0]
+        frames[0] = (ref, nd, Xb.astype(np.complex128), np.complex128(th0), rows)
+        angle0 = angle0.astype(np.complex128)
+    b.bodies[body.name] = info = BodyInfo(
         body.name, index, frames[0][0], frames[0][3], "beam", node_dofs,
         Xc if len(frames) > 1 else frames[0][2], elements, node_ref,
-        np.array(angle0), np.array([fr[0] for fr in frames], dtype=np.int64), offsets)
+        np.array(angle0.tolist()), np.array([fr[0] for fr in frames], dtype=np.int64), offsets)
+    if b.record is not None:
+        inc.record_beam(b, body, specs, frames, marks, info)
 
     def locate(at):
         dofs = -np.ones(6, dtype=np.int64)
@@ -104,6 +133,24 @@ def compile_beam(body: Beam, b: Builder) -> None:
         return dofs, Xb[k - specs[f].first], th0
 
     b.locate[body.name] = locate
+
+
+def _join_frames(body: Beam, b: Builder, frames: list, rec, redo, marks) -> None:
+    """The rows joining neighbouring frames: all of them, or (with a nominal record ``rec``)
+    those next to a recompiled frame, the others copied."""
+    n_fr = len(frames)
+    joins = range(1, n_fr) if rec is None else sorted(
+        {g for f in redo for g in (f, f + 1) if 1 <= g < n_fr})
+    done = 1
+    for f in joins:
+        if rec is not None:
+            inc.extend_from(b, rec.builder, rec.marks[n_fr + done - 1], rec.marks[n_fr + f - 1])
+        _join(b, _FrameJoint(f"{body.name}.frame{f}"), frames[f - 1], frames[f])
+        done = f + 1
+        if marks is not None:
+            marks.append(inc.snapshot(b))
+    if rec is not None:
+        inc.extend_from(b, rec.builder, rec.marks[n_fr + done - 1], rec.marks[2 * n_fr - 1])
 
 
 def _join(b: Builder, joint, fa, fb) -> None:

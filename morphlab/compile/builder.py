@@ -57,9 +57,14 @@ class Builder:
     body's compile function; :meth:`point`).
     """
 
-    def __init__(self, model, dtype: np.dtype):
+    def __init__(self, model, dtype: np.dtype, *, record: bool = False,
+                 prior: dict | None = None):
         self.model = model
         self.dtype = dtype
+        # beam name -> the nominal compile's record (morphlab.compile.incremental): kept when
+        # ``record``, read from ``prior`` when compiling a perturbed design
+        self.record: dict | None = {} if record else None
+        self.prior = prior
         self.bodies: dict[str, BodyInfo] = {}
         self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)
         self.dof_names: list[str] = []

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import ModelError
 from ..model import Beam, Model
 from ..model.profiles import Profile
-from . import bodies, joints, loads  # noqa: F401 - they register the compile functions
+from . import bodies, incremental, joints, loads  # noqa: F401 - they register the compile functions
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
 from .initial import initial_velocities, needs_initial_velocities
@@ -53,7 +53,8 @@ def _same_topology(sysd: dict, like: System) -> bool:
     return all(np.array_equal(sysd[k], getattr(like, k)) for k in _TOPOLOGY_KEYS)
 
 
-def compile_model(model: Model, dtype=None, *, like: System | None = None) -> System:
+def compile_model(model: Model, dtype=None, *, like: System | None = None,
+                  record: bool = False) -> System:
     """Compile ``model`` into a :class:`System`.
 
     Parameters
@@ -65,7 +66,12 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None) -> Sy
     like : System, optional
         A system of the same topology (a perturbed design of a sensitivity run): its Newton
         pattern and scatter maps are reused when the DOF, element, joint and load tables are
-        equal (they are compared, and the pattern is built afresh when they are not).
+        equal (they are compared, and the pattern is built afresh when they are not). If
+        ``like`` was compiled with ``record=True``, the beam frames whose inputs equal its
+        own are copied from it, not compiled (:mod:`morphlab.compile.incremental`).
+    record : bool
+        Keep what the perturbed designs of a sensitivity run need to compile incrementally
+        (held while the returned system lives).
 
     Raises
     ------
@@ -81,7 +87,8 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None) -> Sy
     if not model.bodies:
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
-    builder = Builder(model, dt)
+    builder = Builder(model, dt, record=record,
+                      prior=incremental.record_of(like) if like is not None else None)
     for item in [*model.bodies, *model.joints, *model.forces, *model.torques]:
         compile_item(item, builder)
     sysd = dict(model=model, dtype=dt, **builder.arrays())
@@ -111,4 +118,6 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None) -> Sy
         system.v0 = initial_velocities(system)
     if checked:
         check_initial(system, positions=False)
+    if record:
+        incremental.remember(system, builder.record)
     return system

@@ -239,7 +239,7 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     p0 = {k: float(v) for k, v in p0.items()}
 
     t_start = _time.perf_counter()
-    sys0 = compile_model(call_build(build, p0, "at the nominal design"))
+    sys0 = compile_model(call_build(build, p0, "at the nominal design"), record=True)
     csys = complex_systems(build, p0, names, sys0, settings.t_end)
     steps = relative_steps(p0, names, getattr(strategy, "step", step))
     setup = Setup(sys0, settings, build, p0, names, csys, dict(responses), store, progress,
