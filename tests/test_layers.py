@@ -20,8 +20,8 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-STAGES = ["kernels", ("errors", "_version"), "model", "compile", "results", "solve", "sensitivity", "warmup",
-          ("plots", "io"), "studies", "morphing", ("bench", "cli")]
+STAGES = ["kernels", ("errors", "_version"), "model", "compile", "results", "solve",
+          "sensitivity", "warmup", ("plots", "io"), "studies", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
     for name in (stage if isinstance(stage, tuple) else (stage,)):

@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 
+from .._version import __version__
 from ..errors import FormatError
 from .container import read_members, write_members
 
