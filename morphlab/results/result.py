@@ -13,7 +13,7 @@ import numpy as np
 from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
 from ..kernels.assemble import add_residual
-from ..kernels.joints import load_residual
+from ..kernels.loads import load_residual
 from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
