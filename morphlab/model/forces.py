@@ -68,6 +68,16 @@ class LineLoad:
     elements: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
+def _body(model, body, owner):
+    """``model._own(body)``, an unknown name reported with ``owner``."""
+    if isinstance(body, str):
+        try:
+            return model.body(body)
+        except ModelError as exc:
+            raise ModelError(f"{owner}: {exc}") from None
+    return model._own(body, owner)
+
+
 def _nonnegative(value, what, owner):
     """A finite number whose real part is >= 0 (complex values pass: a complex step)."""
     v = _numeric(value, what, owner, expect="a finite number >= 0")
@@ -87,7 +97,7 @@ def make_spring(model, name, body_a, body_b, at_a, at_b, stiffness, damping, res
                 preload) -> Spring:
     """A validated :class:`Spring` of ``model`` (not yet added)."""
     owner = f"spring {name!r}"
-    a, b = model._own(body_a, owner), model._own(body_b, owner)
+    a, b = _body(model, body_a, owner), _body(model, body_b, owner)
     if a is model.ground and b is model.ground:
         raise ModelError(f"{owner}: both ends are on the ground; attach at least one to a body")
     pa = model._check_point_on(a, at_a, owner)
@@ -122,12 +132,10 @@ def make_rotational_spring(model, name, joint_or_bodies, at_a, at_b, stiffness, 
                              "give at_a / at_b only with a pair of bodies")
         a, b, at_a, at_b = joint.a, joint.b, joint.at, joint.at
     elif isinstance(joint_or_bodies, (tuple, list)) and len(joint_or_bodies) == 2:
-        a, b = (model._own(x, owner) for x in joint_or_bodies)
+        a, b = (_body(model, x, owner) for x in joint_or_bodies)
     else:
         raise ModelError(f"{owner}: expected a revolute joint (or its name) or a pair "
                          f"(body_a, body_b), got {_show(joint_or_bodies)}")
-    if a is b:
-        raise ModelError(f"{owner}: connects body {a.name!r} to itself")
     points = []
     for body, at, key in ((a, at_a, "at_a"), (b, at_b, "at_b")):
         if isinstance(body, Beam):
@@ -138,6 +146,9 @@ def make_rotational_spring(model, name, joint_or_bodies, at_a, at_b, stiffness, 
         elif at is not None and not isinstance(body, Ground):
             at = _point(at, key, owner)
         points.append(at)
+    if a is b and not (isinstance(a, Beam) and np.any(_real(points[0]) != _real(points[1]))):
+        raise ModelError(f"{owner}: connects body {a.name!r} to itself (two different nodes "
+                         "of one beam are allowed)")
     k, c, f0 = _parameters(owner, stiffness, damping, preload)
     if rest_angle is not None:
         _numeric(rest_angle, "rest_angle", owner)
@@ -148,7 +159,7 @@ def make_rotational_spring(model, name, joint_or_bodies, at_a, at_b, stiffness, 
 def make_line_load(model, name, beam, q, profile, elements) -> LineLoad:
     """A validated :class:`LineLoad` of ``model``."""
     owner = f"line load {name!r}"
-    beam = model._own(beam, owner)
+    beam = _body(model, beam, owner)
     if not isinstance(beam, Beam):
         raise ModelError(f"{owner}: a line load acts on a beam, got {type(beam).__name__} "
                          f"{beam.name!r}")

@@ -13,6 +13,7 @@ import numpy as np
 from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
 from ..kernels.assemble import add_residual
+from ..kernels.forces import spring_measures
 from ..kernels.loads import load_residual
 from ..model import Beam, RigidBody
 from . import reactions
@@ -227,10 +228,11 @@ class Result:
     @property
     def energy(self) -> dict:
         """Energy balance over time: ``kinetic``, ``strain``, ``gravity`` (potential),
-        ``damping`` (dissipated), ``load_work`` (of applied forces and torques),
-        ``drive_work`` (of the drives), ``work`` (both), and ``total`` = kinetic + strain +
-        gravity; each (n_t,). ``total - work + damping`` is constant up to the integrator's
-        error (computed once, on first access)."""
+        ``spring`` (potential of the spring-dampers), ``damping`` (dissipated by the beams'
+        and the spring-dampers' damping), ``load_work`` (of applied forces, line loads and
+        torques), ``drive_work`` (of the drives), ``work`` (both), and ``total`` = kinetic +
+        strain + gravity + spring; each (n_t,). ``total - work + damping`` is constant up to
+        the integrator's error (computed once, on first access)."""
         if self.energy_cache is None:
             self.energy_cache = energy(self)
         return self.energy_cache
@@ -283,7 +285,8 @@ def _frames_of_nodes(info, q: np.ndarray):
 
 
 def energy(res: Result) -> dict:
-    """Kinetic, strain and gravitational energy, damping dissipation and external work."""
+    """Kinetic, strain, gravitational and spring energy, damping dissipation and external
+    work (:attr:`Result.energy`)."""
     if res.q is None or res.v is None:
         raise ModelError("the energy needs the histories of q and v: run with store "
                          "including 'q' and 'v'")
@@ -332,12 +335,29 @@ def energy(res: Result) -> dict:
                             np.sin(th) * cu[0] + np.cos(th) * cu[1]])
             r = np.real(q[ref[:2]]) * m + Acu
             grav[i] -= float(np.real(s.gravity) @ r)
+    spring, power_spring = _spring_energy(s, S, res)
     work = _cumulative(power_ext, res.t)
-    diss = _cumulative(power_damp, res.t)
+    diss = _cumulative(power_damp + power_spring, res.t)
     drive = _cumulative(reactions.drive_power_total(res), res.t)
-    return {"kinetic": kin, "strain": strain, "gravity": grav, "damping": diss,
-            "load_work": work, "drive_work": drive, "work": work + drive,
-            "total": kin + strain + grav}
+    return {"kinetic": kin, "strain": strain, "gravity": grav, "spring": spring,
+            "damping": diss, "load_work": work, "drive_work": drive, "work": work + drive,
+            "total": kin + strain + grav + spring}
+
+
+def _spring_energy(s: System, S, res: Result) -> tuple[np.ndarray, np.ndarray]:
+    """Potential ``k (x^2)/2 + f0 x`` (``x = s - s0``) of the spring-dampers summed, and the
+    power ``c s'^2`` their dampers dissipate, at every time (real parts, (n_t,) each)."""
+    n_t, n_s = res.n_t, s.spring_kind.shape[0]
+    if n_s == 0 or n_t == 0:
+        return np.zeros(n_t), np.zeros(n_t)
+    dt = np.result_type(s.dtype, res.q.dtype)
+    out = np.zeros((n_t, n_s, 2), dtype=dt)
+    spring_measures(kernel_arrays(s, dt), np.ascontiguousarray(res.q, dtype=dt),
+                    np.ascontiguousarray(res.v, dtype=dt), out)
+    k, c, s0, f0 = np.real(s.spring_par).T
+    x = np.real(out[..., 0]) - s0
+    return (np.sum(0.5 * k * x * x + f0 * x, axis=1),
+            np.sum(c * np.real(out[..., 1]) ** 2, axis=1))
 
 
 def _cumulative(power: np.ndarray, t: np.ndarray) -> np.ndarray:
