@@ -333,7 +333,8 @@ def test_energy_balance_with_a_line_load_is_second_order():
 
 
 # ------------------------------------------------------------------ sensitivities
-P_FE = {"k": 0.5, "l0": 20.0, "c": 2e-3, "q": -0.02, "k_rot": 100.0, "f0": 1.0}
+P_FE = {"k": 0.5, "l0": 20.0, "c": 2e-3, "q": -0.02, "k_rot": 100.0, "f0": 1.0,
+        "y_anchor": 10.0, "rest_rot": 0.05}
 RUN = dict(t_end=0.03, dt=1e-3)
 
 
@@ -348,19 +349,20 @@ def _design(p):
     m.add_revolute(m.ground, beam, at=(0.0, 0.0), name="pivot")
     tip = m.add_rigid_body(mass=1e-5, inertia=1e-3, position=tuple(nodes[-1]), name="tip")
     m.add_revolute(beam, tip, at=tuple(nodes[-1]), name="end")
-    m.add_spring("s", tip, m.ground, at_a=tuple(nodes[-1]), at_b=(70.0, 10.0),
+    m.add_spring("s", tip, m.ground, at_a=tuple(nodes[-1]), at_b=(70.0, p["y_anchor"]),
                  stiffness=p["k"], damping=p["c"], rest_length=p["l0"], preload=p["f0"])
-    m.add_rotational_spring("r", "pivot", stiffness=p["k_rot"], damping=0.01)
+    m.add_rotational_spring("r", "pivot", stiffness=p["k_rot"], damping=0.01,
+                            rest_angle=p["rest_rot"])
     m.add_line_load("q", beam, q=(0.0, p["q"]), elements=[1, 2, 3])
     return m
 
 
 def test_sensitivities_of_the_force_elements_direct_adjoint_complex_step():
-    """Stiffness, damping, rest length and preload of a spring, the stiffness of a torsion
-    spring and a line load's magnitude: the direct and the adjoint method equal the whole-run
+    """Stiffness, damping, rest length, preload and ground anchor of a spring, the stiffness
+    and rest angle of a torsion spring and a line load's magnitude: the direct and the adjoint method equal the whole-run
     complex step to 1e-8 of each response's largest scaled gradient (p_i dpsi/dp_i; measured
-    <= 1.6e-13), and each other to 1e-10 (the same recursion transposed; measured 6e-16).
-    Every variable moves each response by more than 1e-4 of the largest (measured >= 0.047),
+    <= 6.5e-14), and each other to 1e-10 (the same recursion transposed; measured 7e-16).
+    Every variable moves each response by more than 1e-4 of the largest (measured >= 9.6e-3),
     so no comparison is vacuous."""
     nodes = straight_nodes(4, length=60.0, angle=-0.3)
     resp = {"tip_y": ml.responses.point_displacement("tip", tuple(nodes[-1]), 1),
@@ -413,3 +415,13 @@ def test_bad_input_is_refused_naming_the_element():
     with pytest.raises(ml.ModelError, match="'ok' already exists"):
         m.add_line_load("ok", beam, q=(0, 1))
     assert len(m.springs) == 1 and not m.line_loads  # nothing half-added
+
+
+def test_a_saved_result_keeps_the_force_elements(tmp_path):
+    """The force elements live in the System arrays, which the result file stores: a loaded
+    result has the same energy, spring potential included (bitwise)."""
+    res = ml.simulate(_spring_pendulum(), t_end=0.01, dt=1e-3)
+    ml.io.save(res, tmp_path / "run.npz")
+    back = ml.io.load(tmp_path / "run.npz")
+    for key, value in res.energy.items():
+        np.testing.assert_array_equal(back.energy[key], value, err_msg=key)
