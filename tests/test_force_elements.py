@@ -13,12 +13,12 @@ the direct and adjoint methods against the whole-run complex step.
 import numpy as np
 import pytest
 from models import E_AL, RHO_AL, straight_nodes
-from morphlab.compile.forces import line_integrals
 from morphlab.kernels import beam as kbeam
 from morphlab.kernels.assemble import step_matrix, step_residual
 
 import morphlab as ml
 from morphlab.compile import kernel_arrays
+from morphlab.compile.forces import line_integrals
 
 
 # ------------------------------------------------------------------ Newton-matrix terms
@@ -359,8 +359,8 @@ def _design(p):
 
 def test_sensitivities_of_the_force_elements_direct_adjoint_complex_step():
     """Stiffness, damping, rest length, preload and ground anchor of a spring, the stiffness
-    and rest angle of a torsion spring and a line load's magnitude: the direct and the adjoint method equal the whole-run
-    complex step to 1e-8 of each response's largest scaled gradient (p_i dpsi/dp_i; measured
+    and rest angle of a torsion spring and a line load's magnitude: the direct and the
+    adjoint method equal the whole-run complex step to 1e-8 of each response's largest scaled gradient (p_i dpsi/dp_i; measured
     <= 6.5e-14), and each other to 1e-10 (the same recursion transposed; measured 7e-16).
     Every variable moves each response by more than 1e-4 of the largest (measured >= 9.6e-3),
     so no comparison is vacuous."""
