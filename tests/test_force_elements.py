@@ -360,10 +360,10 @@ def _design(p):
 def test_sensitivities_of_the_force_elements_direct_adjoint_complex_step():
     """Stiffness, damping, rest length, preload and ground anchor of a spring, the stiffness
     and rest angle of a torsion spring and a line load's magnitude: the direct and the
-    adjoint method equal the whole-run complex step to 1e-8 of each response's largest scaled gradient (p_i dpsi/dp_i; measured
-    <= 6.5e-14), and each other to 1e-10 (the same recursion transposed; measured 7e-16).
-    Every variable moves each response by more than 1e-4 of the largest (measured >= 9.6e-3),
-    so no comparison is vacuous."""
+    adjoint method equal the whole-run complex step to 1e-8 of each response's largest scaled
+    gradient (p_i dpsi/dp_i; measured <= 6.5e-14), and each other to 1e-10 (the same
+    recursion transposed; measured 7e-16). Every variable moves each response by more than
+    1e-4 of the largest (measured >= 9.6e-3), so no comparison is vacuous."""
     nodes = straight_nodes(4, length=60.0, angle=-0.3)
     resp = {"tip_y": ml.responses.point_displacement("tip", tuple(nodes[-1]), 1),
             "node_x": ml.responses.point_displacement("beam", tuple(nodes[2]), 0)}
