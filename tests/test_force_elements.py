@@ -143,6 +143,9 @@ def test_spring_mass_frequency_and_preload_offset():
         exact = x_eq + (x0 - x_eq) * np.cos(omega * res.t)
         errs.append(np.abs(res.dof("mass.x") - exact).max())
         assert np.abs(res.dof("mass.y")).max() < 1e-12
+        spring = res.spring("s")  # the tension k (x - l0) + f0, x the length here
+        np.testing.assert_allclose(spring["force"], K_SPRING * (res.dof("mass.x") - rest) + f0,
+                                   rtol=1e-12, atol=1e-12 * f0)
     assert errs[1] < 1e-3 * (x0 - x_eq)
     assert 3.5 < errs[0] / errs[1] < 4.5, errs
 
@@ -379,6 +382,24 @@ def test_sensitivities_of_the_force_elements_direct_adjoint_complex_step():
             assert abs(P_FE[v] * (d.gradients[r][v] - ref)) <= 1e-8 * largest, (r, v)
             assert abs(P_FE[v] * (a.gradients[r][v] - ref)) <= 1e-8 * largest, (r, v)
             assert abs(P_FE[v] * (a.gradients[r][v] - d.gradients[r][v])) <= 1e-10 * largest
+
+
+def test_a_spring_force_response_by_the_direct_method():
+    """``Result.spring`` is complex-safe: a response reading the spring's force at the end
+    of the run has direct-method gradients equal to the whole-run complex step (1e-8 of the
+    largest scaled gradient, as above)."""
+    resp = {"force": lambda r: r.spring("s")["force"][-1]}
+    p0 = {k: P_FE[k] for k in ("k", "l0", "y_anchor", "q")}
+
+    def build(p):
+        return _design(dict(P_FE, **p))
+
+    d = ml.sensitivities(build, p0, resp, method="direct", **RUN)
+    cs = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
+    largest = max(abs(p0[v] * cs.gradients["force"][v]) for v in p0)
+    for v in p0:
+        err = abs(p0[v] * (d.gradients["force"][v] - cs.gradients["force"][v]))
+        assert err <= 1e-8 * largest, (v, err / largest)
 
 
 # ------------------------------------------------------------------ bad input

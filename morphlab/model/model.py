@@ -137,8 +137,8 @@ class Model:
         name = f"{prefix}{count}" if name is None else _check_name(name, "load")
         if any(ld.name == name for ld in self.forces + self.torques + self.springs
                + self.line_loads):
-            raise ModelError(f"model {self.name!r}: a load or force element named {name!r} "
-                             "already exists")
+            raise ModelError(f"model {self.name!r}: a load named {name!r} already exists "
+                             "(loads and force elements share one set of names)")
         return name
 
     def _check_point_on(self, body, at, what):
