@@ -21,94 +21,99 @@ for the length
 import numpy as np
 from numba import njit
 
-from .joints import ROW_X, ROW_Y, _psi, _side_hessian, _side_of
+from .joints import ROW_X, ROW_Y, _psi, _side_of
 
 #: Kinds of spring-damper (``spring_kind``): distance of two points, relative rotation.
 SPRING_LENGTH, SPRING_ANGLE = 0, 1
 
 
-@njit(cache=True, inline="always")
-def _sdofs(table, i, side):
-    return (table[i, side, 0], table[i, side, 1], table[i, side, 2], table[i, side, 3],
-            table[i, side, 4], table[i, side, 5])
-
-
-@njit(cache=True, inline="always")
-def _scaled(x, t):
-    return (x * t[0], x * t[1], x * t[2], x * t[3], x * t[4], x * t[5])
+@njit(cache=True)
+def _put(G, row, off, t, sign):
+    """``G[row, off:off + 6] = sign t`` for a 6-tuple ``t`` (constant indices: no switch over
+    the tuple's entries)."""
+    G[row, off] = sign * t[0]
+    G[row, off + 1] = sign * t[1]
+    G[row, off + 2] = sign * t[2]
+    G[row, off + 3] = sign * t[3]
+    G[row, off + 4] = sign * t[4]
+    G[row, off + 5] = sign * t[5]
 
 
 @njit(cache=True)
-def _measure(kind, dP, dQ, uP, uQ, q, v):
-    """``(s, s', (grad_P, grad_Q), (Hv_P, Hv_Q), (e_x, e_y, l), (Dx_P, Dy_P, Dx_Q, Dy_Q))`` of a
-    spring: its measure, rate, gradient and ``H q'`` per side (6-tuples, signs applied), and
-    for a length the direction, the length and the signed gradients of ``d`` (zeros for an
-    angle)."""
-    zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
-    one = zero + 1.0
-    z6 = (zero, zero, zero, zero, zero, zero)
-    if kind == SPRING_ANGLE:
-        e = (zero, zero, one, zero, zero, one)
+def _terms(S, i, q, v, G):
+    """Measure ``s`` and rate ``s'`` of spring ``i``, with its derivatives over the twelve
+    local DOFs (side P's six, then side Q's) in ``G`` (6, 12): row 0 ``grad s``, row 1
+    ``H q'``, rows 2 and 3 the signed gradients ``D_x``, ``D_y`` of ``d = r_P - r_Q``, row 4
+    the local velocities; row 5 holds, at columns ``6 side + (0, 1, 2)``, the entries
+    ``(theta, theta), (theta, w_x), (theta, w_y)`` of ``e_x H_x + e_y H_y`` of that side.
+    Returns ``(s, s', e_x, e_y, l)`` (``e``, ``l`` of a length; 0, 0, 1 for an angle).
+
+    The point Hessians follow from the gradients: ``H_k(theta, theta) = -(A u)_k`` with
+    ``A u = (D_y, -D_x)`` at theta, ``H_k(theta, w_x) = D_k(w_y)`` and
+    ``H_k(theta, w_y) = -D_k(w_x)`` (``docs/theory.md`` §4.1)."""
+    dofs, u = S.spring_dofs[i], S.spring_u0
+    zero = q[0] * 0.0 + u[i, 0, 0] * 0.0
+    for col in range(12):
+        d = dofs[col // 6, col % 6]
+        for row in range(6):
+            G[row, col] = 0.0
+        if d >= 0:
+            G[4, col] = v[d]
+    dP = (dofs[0, 0], dofs[0, 1], dofs[0, 2], dofs[0, 3], dofs[0, 4], dofs[0, 5])
+    dQ = (dofs[1, 0], dofs[1, 1], dofs[1, 2], dofs[1, 3], dofs[1, 4], dofs[1, 5])
+    if S.spring_kind[i] == SPRING_ANGLE:
+        for col in (2, 5):
+            G[0, col] = 1.0
+            G[0, col + 6] = -1.0
         s = _psi(dP, q, zero) - _psi(dQ, q, zero)
         sd = _psi(dP, v, zero) - _psi(dQ, v, zero)
-        return s, sd, (e, _scaled(-1.0, e)), (z6, z6), (zero, zero, one), (z6, z6, z6, z6)
-    gxP, _, DxP, HvxP, _, _ = _side_of(ROW_X, dP, uP[0], uP[1], q, v, v)
-    gyP, _, DyP, HvyP, _, _ = _side_of(ROW_Y, dP, uP[0], uP[1], q, v, v)
-    gxQ, _, DxQ, HvxQ, _, _ = _side_of(ROW_X, dQ, uQ[0], uQ[1], q, v, v)
-    gyQ, _, DyQ, HvyQ, _, _ = _side_of(ROW_Y, dQ, uQ[0], uQ[1], q, v, v)
-    DxQ, DyQ = _scaled(-1.0, DxQ), _scaled(-1.0, DyQ)
-    dx, dy = gxP - gxQ, gyP - gyQ
+        return s, sd, zero, zero, zero + 1.0
+    xP, _, DxP, _, _, _ = _side_of(ROW_X, dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
+    yP, _, DyP, _, _, _ = _side_of(ROW_Y, dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
+    xQ, _, DxQ, _, _, _ = _side_of(ROW_X, dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
+    yQ, _, DyQ, _, _, _ = _side_of(ROW_Y, dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
+    _put(G, 2, 0, DxP, 1.0)
+    _put(G, 3, 0, DyP, 1.0)
+    _put(G, 2, 6, DxQ, -1.0)
+    _put(G, 3, 6, DyQ, -1.0)
+    dx, dy = xP - xQ, yP - yQ
     ell = np.sqrt(dx * dx + dy * dy)
     ex, ey = dx / ell, dy / ell
     vx, vy = zero, zero  # the relative velocity D q'
-    for j in range(6):
-        if dP[j] >= 0:
-            vx += DxP[j] * v[dP[j]]
-            vy += DyP[j] * v[dP[j]]
-        if dQ[j] >= 0:
-            vx += DxQ[j] * v[dQ[j]]
-            vy += DyQ[j] * v[dQ[j]]
+    for col in range(12):
+        vx += G[2, col] * G[4, col]
+        vy += G[3, col] * G[4, col]
     sd = ex * vx + ey * vy
-    gP = (ex * DxP[0] + ey * DyP[0], ex * DxP[1] + ey * DyP[1], ex * DxP[2] + ey * DyP[2],
-          ex * DxP[3] + ey * DyP[3], ex * DxP[4] + ey * DyP[4], ex * DxP[5] + ey * DyP[5])
-    gQ = (ex * DxQ[0] + ey * DyQ[0], ex * DxQ[1] + ey * DyQ[1], ex * DxQ[2] + ey * DyQ[2],
-          ex * DxQ[3] + ey * DyQ[3], ex * DxQ[4] + ey * DyQ[4], ex * DxQ[5] + ey * DyQ[5])
-    # H q' = D^T (I - e e^T) D q' / l + sum_k e_k H_k q' (H_k q' of each side from _side)
+    # H q' = D^T (I - e e^T) D q' / l + (e_x H_x + e_y H_y) q'
     px, py = (vx - ex * sd) / ell, (vy - ey * sd) / ell
-    hP = (DxP[0] * px + DyP[0] * py, DxP[1] * px + DyP[1] * py,
-          DxP[2] * px + DyP[2] * py + ex * HvxP[2] + ey * HvyP[2],
-          DxP[3] * px + DyP[3] * py + ex * HvxP[3] + ey * HvyP[3],
-          DxP[4] * px + DyP[4] * py + ex * HvxP[4] + ey * HvyP[4], zero)
-    hQ = (DxQ[0] * px + DyQ[0] * py, DxQ[1] * px + DyQ[1] * py,
-          DxQ[2] * px + DyQ[2] * py - ex * HvxQ[2] - ey * HvyQ[2],
-          DxQ[3] * px + DyQ[3] * py - ex * HvxQ[3] - ey * HvyQ[3],
-          DxQ[4] * px + DyQ[4] * py - ex * HvxQ[4] - ey * HvyQ[4], zero)
-    return ell, sd, (gP, gQ), (hP, hQ), (ex, ey, ell), (DxP, DyP, DxQ, DyQ)
-
-
-@njit(cache=True, inline="always")
-def _spring_of(S, i, q, v):
-    """:func:`_measure` of spring ``i`` of ``S`` and its DOFs (pair of 6-tuples)."""
-    dofs = (_sdofs(S.spring_dofs, i, 0), _sdofs(S.spring_dofs, i, 1))
-    u = S.spring_u0
-    return dofs, _measure(S.spring_kind[i], dofs[0], dofs[1], (u[i, 0, 0], u[i, 0, 1]),
-                          (u[i, 1, 0], u[i, 1, 1]), q, v)
+    for col in range(12):
+        G[0, col] = ex * G[2, col] + ey * G[3, col]
+        G[1, col] = G[2, col] * px + G[3, col] * py
+    for b in (0, 6):
+        t, wx, wy = b + 2, b + 3, b + 4
+        htt = ey * G[2, t] - ex * G[3, t]
+        htx = ex * G[2, wy] + ey * G[3, wy]
+        hty = -(ex * G[2, wx] + ey * G[3, wx])
+        G[5, b], G[5, b + 1], G[5, b + 2] = htt, htx, hty
+        G[1, t] += htt * G[4, t] + htx * G[4, wx] + hty * G[4, wy]
+        G[1, wx] += htx * G[4, t]
+        G[1, wy] += hty * G[4, t]
+    return ell, sd, ex, ey, ell
 
 
 @njit(cache=True)
 def spring_residual(S, q, v, wf, springs, R):
     """Add ``wf f grad s`` of the spring-dampers ``springs`` (int64 indices) to the equation
     rows of ``R``."""
-    par = S.spring_par
+    par, dofs = S.spring_par, S.spring_dofs
+    G = np.zeros((6, 12), dtype=R.dtype)
     for i in springs:
-        dofs, m = _spring_of(S, i, q, v)
-        s, sd, g = m[0], m[1], m[2]
+        s, sd, _, _, _ = _terms(S, i, q, v, G)
         f = par[i, 0] * (s - par[i, 2]) + par[i, 1] * sd + par[i, 3]
-        for side in range(2):
-            for j in range(6):
-                d = dofs[side][j]
-                if d >= 0:
-                    R[d] += wf * f * g[side][j]
+        for col in range(12):
+            d = dofs[i, col // 6, col % 6]
+            if d >= 0:
+                R[d] += wf * f * G[0, col]
 
 
 @njit(cache=True)
@@ -117,53 +122,38 @@ def spring_jacobian(S, q, v, cf, bh2, gh, data):
     ``S.spring_map[i, r, c, j, k]``: row DOF ``j`` of side ``r``, column DOF ``k`` of side
     ``c``), weighted ``cf`` (module docstring)."""
     par, smap = S.spring_par, S.spring_map
+    G = np.zeros((6, 12), dtype=data.dtype)
     for i in range(S.spring_kind.shape[0]):
-        dofs, m = _spring_of(S, i, q, v)
-        s, sd, g, hv, geo, D = m
+        s, sd, _, _, ell = _terms(S, i, q, v, G)
         k, c = par[i, 0], par[i, 1]
         f = k * (s - par[i, 2]) + c * sd + par[i, 3]
         length = S.spring_kind[i] == SPRING_LENGTH
-        ex, ey, ell = geo
-        z = ex * 0.0
-        sh = ((z, z, z), (z, z, z))  # (H_22, H_23, H_24) of e_x H_x + e_y H_y per side
-        if length:
-            u = S.spring_u0
-            hx, hy = (_side_hessian(ROW_X, dofs[0], u[i, 0, 0], u[i, 0, 1], q),
-                      _side_hessian(ROW_Y, dofs[0], u[i, 0, 0], u[i, 0, 1], q))
-            hxq, hyq = (_side_hessian(ROW_X, dofs[1], u[i, 1, 0], u[i, 1, 1], q),
-                        _side_hessian(ROW_Y, dofs[1], u[i, 1, 0], u[i, 1, 1], q))
-            sh = ((ex * hx[0] + ey * hy[0], ex * hx[1] + ey * hy[1], ex * hx[2] + ey * hy[2]),
-                  (-ex * hxq[0] - ey * hyq[0], -ex * hxq[1] - ey * hyq[1],
-                   -ex * hxq[2] - ey * hyq[2]))
-        for r in range(2):
-            Dx, Dy = D[2 * r], D[2 * r + 1]
-            for j in range(6):
-                if dofs[r][j] < 0:
+        for row in range(12):
+            r, j = row // 6, row % 6
+            for col in range(12):
+                cs, kk = col // 6, col % 6
+                p = smap[i, r, cs, j, kk]
+                if p < 0:
                     continue
-                for cs in range(2):
-                    Ex, Ey = D[2 * cs], D[2 * cs + 1]
-                    for kk in range(6):
-                        p = smap[i, r, cs, j, kk]
-                        if p < 0:
-                            continue
-                        gg = g[r][j] * g[cs][kk]
-                        val = bh2 * (k * gg + c * g[r][j] * hv[cs][kk]) + gh * c * gg
-                        if length:
-                            H = (Dx[j] * Ex[kk] + Dy[j] * Ey[kk] - gg) / ell
-                            if r == cs and (j == 2 or kk == 2):
-                                o = j + kk - 2  # 2: (th, th); 3: (th, wx); 4: (th, wy)
-                                if o >= 2 and o <= 4:
-                                    H += sh[r][o - 2]
-                            val += bh2 * f * H
-                        data[p] += cf * val
+                gg = G[0, row] * G[0, col]
+                val = bh2 * (k * gg + c * G[0, row] * G[1, col]) + gh * c * gg
+                if length:
+                    H = (G[2, row] * G[2, col] + G[3, row] * G[3, col] - gg) / ell
+                    if r == cs and (j == 2 or kk == 2):
+                        o = j + kk - 2  # 2: (theta, theta); 3: (theta, w_x); 4: (theta, w_y)
+                        if o >= 2 and o <= 4:
+                            H += G[5, 6 * r + o - 2]
+                    val += bh2 * f * H
+                data[p] += cf * val
 
 
 @njit(cache=True)
 def spring_measures(S, Q, V, out):
     """The measure ``s`` and its rate ``s'`` of every spring-damper at every stored time:
     ``Q, V`` (n_t, n_dof), ``out`` (n_t, n_spring, 2)."""
+    G = np.zeros((6, 12), dtype=out.dtype)
     for t in range(Q.shape[0]):
         for i in range(S.spring_kind.shape[0]):
-            _, m = _spring_of(S, i, Q[t], V[t])
-            out[t, i, 0] = m[0]
-            out[t, i, 1] = m[1]
+            s, sd, _, _, _ = _terms(S, i, Q[t], V[t], G)
+            out[t, i, 0] = s
+            out[t, i, 1] = sd

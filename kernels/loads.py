@@ -82,41 +82,40 @@ def load_jacobian(S, q, cf, bh2, F, data):
                     data[p] -= cf * bh2 * F[i, k] * h
 
 
-@njit(cache=True, inline="always")
-def _line_state(S, e, q, qx, qy):
-    """Of line entry ``e``: its frame's DOFs ``(R_x, R_y, theta)``, the global DOFs of its
-    element's six coordinates (``-1``: removed), ``A^T q``, ``(AĨ)^T q`` and the moment
-    ``U + N d`` (body frame)."""
+@njit(cache=True)
+def _line_moment(S, e, q):
+    """Of line entry ``e``: ``cos theta``, ``sin theta`` of its frame and the moment
+    ``U + N d`` (body frame) of its element."""
     el = S.line_elem[e]
-    ref = S.body_ref[S.elem_body[el]]
-    th = q[ref[2]]
-    c = np.cos(th)
-    s = np.sin(th)
-    dofs = np.empty(6, dtype=np.int64)
+    th = q[S.body_ref[S.elem_body[el], 2]]
     ux = S.line_u0[e, 1] + q[0] * 0.0
     uy = S.line_u0[e, 2] + q[0] * 0.0
     for j in range(6):
         f = S.elem_fdof[el, j]
-        dofs[j] = S.flex_dof[f] if f >= 0 else -1
         if f >= 0:
-            ux += S.line_N[e, 0, j] * q[dofs[j]]
-            uy += S.line_N[e, 1, j] * q[dofs[j]]
-    return ref, dofs, (c * qx + s * qy, -s * qx + c * qy), (c * qy - s * qx, -c * qx - s * qy), \
-        (ux, uy), (c, s)
+            d = S.flex_dof[f]
+            ux += S.line_N[e, 0, j] * q[d]
+            uy += S.line_N[e, 1, j] * q[d]
+    return np.cos(th), np.sin(th), ux, uy
 
 
 @njit(cache=True)
 def _line_residual(S, e, q, qx, qy, R):
     """Subtract the generalized forces of line entry ``e`` under the load ``(qx, qy)`` per
-    length (already weighted) from ``R`` (module docstring)."""
-    ref, dofs, Atq, AItq, U, _ = _line_state(S, e, q, qx, qy)
+    length (already weighted) from ``R`` (module docstring): ``A^T q`` on the element
+    coordinates, ``(AĨ)^T q . (U + N d)`` on theta."""
+    el = S.line_elem[e]
+    ref = S.body_ref[S.elem_body[el]]
+    c, s, ux, uy = _line_moment(S, e, q)
     L = S.line_u0[e, 0]
     R[ref[0]] -= L * qx
     R[ref[1]] -= L * qy
-    R[ref[2]] -= AItq[0] * U[0] + AItq[1] * U[1]
+    R[ref[2]] -= (c * qy - s * qx) * ux - (c * qx + s * qy) * uy
+    ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q
     for j in range(6):
-        if dofs[j] >= 0:
-            R[dofs[j]] -= Atq[0] * S.line_N[e, 0, j] + Atq[1] * S.line_N[e, 1, j]
+        f = S.elem_fdof[el, j]
+        if f >= 0:
+            R[S.flex_dof[f]] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
 
 
 @njit(cache=True)
@@ -124,14 +123,15 @@ def _line_jacobian(S, e, q, qx, qy, data):
     """Subtract ``d Q/dq`` of line entry ``e`` under ``(qx, qy)`` (already weighted by
     ``cf bh2``) from ``data`` at ``S.line_map[e]``: ``dQ_theta/dtheta = -q . A (U + N d)``,
     ``dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q``."""
-    _, dofs, _, AItq, U, cs = _line_state(S, e, q, qx, qy)
-    c, s = cs
+    el = S.line_elem[e]
+    c, s, ux, uy = _line_moment(S, e, q)
     m = S.line_map[e]
     if m[0, 0] >= 0:
-        data[m[0, 0]] += qx * (c * U[0] - s * U[1]) + qy * (s * U[0] + c * U[1])
+        data[m[0, 0]] += qx * (c * ux - s * uy) + qy * (s * ux + c * uy)
+    bx, by = c * qy - s * qx, -c * qx - s * qy  # (AĨ)^T q
     for j in range(6):
-        if dofs[j] >= 0:
-            h = AItq[0] * S.line_N[e, 0, j] + AItq[1] * S.line_N[e, 1, j]
+        if S.elem_fdof[el, j] >= 0:
+            h = bx * S.line_N[e, 0, j] + by * S.line_N[e, 1, j]
             if m[0, 1 + j] >= 0:
                 data[m[0, 1 + j]] -= h
             if m[1 + j, 0] >= 0:
