@@ -27,7 +27,7 @@ from .joints import ROW_X, ROW_Y, _psi, _side_of
 SPRING_LENGTH, SPRING_ANGLE = 0, 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _put(G, row, off, t, sign):
     """``G[row, off:off + 6] = sign t`` for a 6-tuple ``t`` (constant indices: no switch over
     the tuple's entries)."""

@@ -44,8 +44,23 @@ def load_residual(S, q, wf, F, T, loads, torques, R):
     """
     load_dofs, load_u0, torque_dofs = S.load_dofs, S.load_u0, S.torque_dofs
     for i in loads:
+        qx, qy = wf * F[i, 0], wf * F[i, 1]
         for e in range(S.line_off[i], S.line_off[i + 1]):
-            _line_residual(S, e, q, wf * F[i, 0], wf * F[i, 1], R)
+            # Q_R = L q, Q_theta = (AĨ)^T q . (U + N d), Q_d = N^T A^T q (module docstring)
+            el = S.line_elem[e]
+            ref = S.body_ref[S.elem_body[el]]
+            c, s = np.cos(q[ref[2]]), np.sin(q[ref[2]])
+            ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q; (AĨ)^T q = (ay, -ax)
+            mom = ay * S.line_u0[e, 1] - ax * S.line_u0[e, 2]
+            for j in range(6):
+                f = S.elem_fdof[el, j]
+                if f >= 0:
+                    d = S.flex_dof[f]
+                    mom += (ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]) * q[d]
+                    R[d] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
+            R[ref[0]] -= S.line_u0[e, 0] * qx
+            R[ref[1]] -= S.line_u0[e, 0] * qy
+            R[ref[2]] -= mom
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])
         if dofs[0] < 0 and dofs[2] < 0:
@@ -68,8 +83,26 @@ def load_jacobian(S, q, cf, bh2, F, data):
     ``S.load_map`` (n_load, 6, 6) and ``S.line_map`` (n_line, 7, 7))."""
     load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
     for i in range(load_dofs.shape[0]):
+        qx, qy = cf * bh2 * F[i, 0], cf * bh2 * F[i, 1]
         for e in range(S.line_off[i], S.line_off[i + 1]):
-            _line_jacobian(S, e, q, cf * bh2 * F[i, 0], cf * bh2 * F[i, 1], data)
+            # dQ_theta/dtheta = -A^T q . (U + N d); dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q
+            el = S.line_elem[e]
+            m = S.line_map[e]
+            th = q[S.body_ref[S.elem_body[el], 2]]
+            c, s = np.cos(th), np.sin(th)
+            ax, ay = c * qx + s * qy, c * qy - s * qx
+            mom = ax * S.line_u0[e, 1] + ay * S.line_u0[e, 2]
+            for j in range(6):
+                f = S.elem_fdof[el, j]
+                if f >= 0:
+                    mom += (ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]) * q[S.flex_dof[f]]
+                    h = ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]
+                    if m[0, 1 + j] >= 0:
+                        data[m[0, 1 + j]] -= h
+                    if m[1 + j, 0] >= 0:
+                        data[m[1 + j, 0]] -= h
+            if m[0, 0] >= 0:
+                data[m[0, 0]] += mom
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])
         if dofs[0] < 0 and dofs[2] < 0:
@@ -80,59 +113,3 @@ def load_jacobian(S, q, cf, bh2, F, data):
                 p = load_map[i, j, m]
                 if p >= 0:
                     data[p] -= cf * bh2 * F[i, k] * h
-
-
-@njit(cache=True)
-def _line_moment(S, e, q):
-    """Of line entry ``e``: ``cos theta``, ``sin theta`` of its frame and the moment
-    ``U + N d`` (body frame) of its element."""
-    el = S.line_elem[e]
-    th = q[S.body_ref[S.elem_body[el], 2]]
-    ux = S.line_u0[e, 1] + q[0] * 0.0
-    uy = S.line_u0[e, 2] + q[0] * 0.0
-    for j in range(6):
-        f = S.elem_fdof[el, j]
-        if f >= 0:
-            d = S.flex_dof[f]
-            ux += S.line_N[e, 0, j] * q[d]
-            uy += S.line_N[e, 1, j] * q[d]
-    return np.cos(th), np.sin(th), ux, uy
-
-
-@njit(cache=True)
-def _line_residual(S, e, q, qx, qy, R):
-    """Subtract the generalized forces of line entry ``e`` under the load ``(qx, qy)`` per
-    length (already weighted) from ``R`` (module docstring): ``A^T q`` on the element
-    coordinates, ``(AĨ)^T q . (U + N d)`` on theta."""
-    el = S.line_elem[e]
-    ref = S.body_ref[S.elem_body[el]]
-    c, s, ux, uy = _line_moment(S, e, q)
-    L = S.line_u0[e, 0]
-    R[ref[0]] -= L * qx
-    R[ref[1]] -= L * qy
-    R[ref[2]] -= (c * qy - s * qx) * ux - (c * qx + s * qy) * uy
-    ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q
-    for j in range(6):
-        f = S.elem_fdof[el, j]
-        if f >= 0:
-            R[S.flex_dof[f]] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
-
-
-@njit(cache=True)
-def _line_jacobian(S, e, q, qx, qy, data):
-    """Subtract ``d Q/dq`` of line entry ``e`` under ``(qx, qy)`` (already weighted by
-    ``cf bh2``) from ``data`` at ``S.line_map[e]``: ``dQ_theta/dtheta = -q . A (U + N d)``,
-    ``dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q``."""
-    el = S.line_elem[e]
-    c, s, ux, uy = _line_moment(S, e, q)
-    m = S.line_map[e]
-    if m[0, 0] >= 0:
-        data[m[0, 0]] += qx * (c * ux - s * uy) + qy * (s * ux + c * uy)
-    bx, by = c * qy - s * qx, -c * qx - s * qy  # (AĨ)^T q
-    for j in range(6):
-        if S.elem_fdof[el, j] >= 0:
-            h = bx * S.line_N[e, 0, j] + by * S.line_N[e, 1, j]
-            if m[0, 1 + j] >= 0:
-                data[m[0, 1 + j]] -= h
-            if m[1 + j, 0] >= 0:
-                data[m[1 + j, 0]] -= h
