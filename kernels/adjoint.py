@@ -137,7 +137,8 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
         pi, flex = parts_of(parts, i, flex_on)
-        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
+        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
+                + pi.springs.size) == 0:
             continue  # the variable changes only the initial state
         rows = r_idx[r_off[i]:r_off[i + 1]]
         for k in flex:

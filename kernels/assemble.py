@@ -11,7 +11,9 @@ import numpy as np
 from numba import njit
 
 from .ffrf import body_jacobian, body_residual
-from .joints import constraint_jacobian, constraint_residual, load_jacobian, load_residual
+from .forces import spring_jacobian, spring_residual
+from .joints import constraint_jacobian, constraint_residual
+from .loads import load_jacobian, load_residual
 from .system import all_parts
 
 
@@ -19,7 +21,8 @@ from .system import all_parts
 def add_residual(S, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd, F, T, n_dof, R):
     """Add one state's weighted share of the residual to ``R`` (n_dof + n_con).
 
-    Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext)``;
+    Equation rows: ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext + Q_s)``
+    (``Q_s``: the spring-dampers, ``kernels.forces``);
     constraint rows: ``scale (wcm J a - wcf F_c)`` (paper eq. 25–26 for one time level).
     """
     add_residual_parts(S, all_parts(S), q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd,
@@ -36,6 +39,7 @@ def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, 
     constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, parts.rows,
                         n_dof, R)
     load_residual(S, q, wf, F, T, parts.loads, parts.torques, R)
+    spring_residual(S, q, v, wf, parts.springs, R)
 
 
 @njit(cache=True)
@@ -50,6 +54,7 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
     constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
     load_jacobian(S, q, cf, bh2, F, data)
+    spring_jacobian(S, q, v, cf, bh2, gh, data)
 
 
 @njit(cache=True, inline="always")
@@ -85,6 +90,7 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
     constraint_residual(S, q, v, a, lam, w[1], w[3], w[4], scale, b0, b1, c, cd, cdd, parts.rows,
                         n_dof, R)
     load_residual(S, q, w[2], F, T, parts.loads, parts.torques, R)
+    spring_residual(S, q, v, w[2], parts.springs, R)
     ssq = 0.0
     for k in range(R.shape[0]):
         ssq += R[k].real * R[k].real + R[k].imag * R[k].imag
@@ -99,6 +105,7 @@ def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     body_jacobian(S, q, v, a, w[0], w[2], bh2, gh, data)
     constraint_jacobian(S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1, data)
     load_jacobian(S, q, w[2], bh2, F, data)
+    spring_jacobian(S, q, v, w[2], bh2, gh, data)
 
 
 @njit(cache=True)

@@ -139,10 +139,11 @@ def parts_of(parts, i, flex_on):
     """:class:`~morphlab.kernels.system.Parts` of variable ``i`` from the packed ``parts``
     (CSR over the variables, see :func:`explicit_loads`), with the mask ``flex_on``, and the
     variable's flexible coordinates (to set in and clear from that mask)."""
-    b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx = parts
+    (b_off, b_idx, e_off, e_idx, f_off, f_idx, c_off, c_idx, l_off, l_idx, t_off, t_idx, s_off,
+     s_idx) = parts
     pi = Parts(b_idx[b_off[i]:b_off[i + 1]], e_idx[e_off[i]:e_off[i + 1]], flex_on,
                c_idx[c_off[i]:c_off[i + 1]], l_idx[l_off[i]:l_off[i + 1]],
-               t_idx[t_off[i]:t_off[i + 1]])
+               t_idx[t_off[i]:t_off[i + 1]], s_idx[s_off[i]:s_off[i + 1]])
     return pi, f_idx[f_off[i]:f_off[i + 1]]
 
 
@@ -161,9 +162,10 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
         Nominal system arrays in the dtype of ``work``.
     P : DesignArrays
         The design data of the n_x perturbed designs (:mod:`morphlab.kernels.system`).
-    parts : tuple of 12 int64 arrays
+    parts : tuple of 14 int64 arrays
         ``(offsets, indices)`` of the bodies, elements, flexible coordinates, constraint rows,
-        loads and torques each variable changes (CSR layout over the variables).
+        loads, torques and spring-dampers each variable changes (CSR layout over the
+        variables).
     q1, v1, a1, l1 / q0, v0, a0, l0 : float64
         Converged states at ``t_{n+1}`` and ``t_n`` (the latter used when ``has_old``), kept
         real: with complex data only the products with changed data are complex (the
@@ -188,7 +190,8 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
         pi, flex = parts_of(parts, i, flex_on)
-        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size) == 0:
+        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
+                + pi.springs.size) == 0:
             continue  # the variable changes only the initial state
         for k in flex:
             flex_on[k] = True

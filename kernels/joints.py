@@ -1,4 +1,5 @@
-"""Scalar constraint rows, point loads and torques, with exact derivatives.
+"""Scalar constraint rows with exact derivatives (the point loads, which share their point
+kinematics, are in :mod:`morphlab.kernels.loads`).
 
 Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 0`` of two kinds:
 
@@ -392,55 +393,6 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
                     Jv += grad[side][j] * v[dofs[side][j]]
         phi[i] = g - c[i]
         phid[i] = Jv - cd[i]
-
-
-@njit(cache=True)
-def load_residual(S, q, wf, F, T, loads, torques, R):
-    """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R``.
-
-    Parameters
-    ----------
-    S : SystemArrays
-        ``S.load_dofs``, ``S.load_u0``: the point of application of each point load (same
-        description as a constraint side); ``S.torque_dofs``: the DOF of the body angle and
-        of the nodal rotation (``-1`` if absent) each torque acts on.
-    F : (n_load, 2)
-        Global force vector of each point load at this time [force].
-    T : (n_torque,)
-        Torque values at this time [force·length].
-    loads, torques : int64 arrays
-        The loads and torques evaluated (all, or those a design variable changes).
-    """
-    load_dofs, load_u0, torque_dofs = S.load_dofs, S.load_u0, S.torque_dofs
-    for i in loads:
-        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
-                load_dofs[i, 4], load_dofs[i, 5])
-        for k in range(2):
-            _, _, grad, _, _, _ = _side(k, dofs, load_u0[i, 0], load_u0[i, 1], q, q, q)
-            for j in range(6):
-                if dofs[j] >= 0:
-                    R[dofs[j]] -= wf * grad[j] * F[i, k]
-    for i in torques:
-        for j in range(2):
-            d = torque_dofs[i, j]
-            if d >= 0:
-                R[d] -= wf * T[i]
-
-
-@njit(cache=True)
-def load_jacobian(S, q, cf, bh2, F, data):
-    """Add ``-cf bh2 d(Q_ext)/dq`` of point forces to ``data`` (positions ``S.load_map``
-    (n_load, 6, 6))."""
-    load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
-    for i in range(load_dofs.shape[0]):
-        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
-                load_dofs[i, 4], load_dofs[i, 5])
-        for k in range(2):
-            h22, h23, h24 = _side_hessian(k, dofs, load_u0[i, 0], load_u0[i, 1], q)
-            for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
-                p = load_map[i, j, m]
-                if p >= 0:
-                    data[p] -= cf * bh2 * F[i, k] * h
 
 
 @njit(cache=True)

@@ -30,7 +30,11 @@ elem_M     (n_elem, 6, 6)       element ``M_ff``
 elem_St    (n_elem, 6, 6)       element ``S̃``
 elem_K     (n_elem, 6, 6)       element stiffness
 con_u0     (n_con, 2, 3)        body-frame point of each side of a row, and an angle (slide)
-load_u0    (n_load, 2)          body-frame point of each point load
+load_u0    (n_load, 2)          body-frame point of each point load (zeros: a line load)
+spring_u0  (n_spring, 2, 2)     body-frame point of each side of a spring (ground: global)
+spring_par (n_spring, 4)        ``k, c, s0, f0`` of each spring-damper (``kernels.forces``)
+line_u0    (n_line, 3)          ``int ds, int u0 ds`` of each loaded element of a line load
+line_N     (n_line, 2, 6)       ``int S_e ds`` of each loaded element (``kernels.loads``)
 body_ref   (n_body, 3)          DOFs ``R_x, R_y, theta`` of each body
 flex_off   (n_body + 1,)        each body's range of flexible coordinates
 flex_dof   (n_flex,)            DOF of each flexible coordinate
@@ -38,12 +42,18 @@ elem_body  (n_elem,)            body of each element
 elem_fdof  (n_elem, 6)          flexible coordinate of each element DOF (``-1``: removed)
 con_kind   (n_con,)             row kind (:data:`morphlab.kernels.joints.ROW_X`, ...)
 con_dofs   (n_con, 2, 6)        DOFs ``R_x, R_y, theta, u, v, phi`` of each side of a row
-load_dofs  (n_load, 6)          the same for the point of each point load
+load_dofs  (n_load, 6)          the same for the point of each point load (``-1``: a line load)
 torque_dofs (n_torque, 2)       DOF of the body angle and of a nodal rotation (``-1``)
+spring_kind (n_spring,)         :data:`morphlab.kernels.forces.SPRING_LENGTH` or ``_ANGLE``
+spring_dofs (n_spring, 2, 6)    DOFs of each side of a spring, as ``con_dofs``
+line_off   (n_load + 1,)        each load's range of line entries (empty: a point load)
+line_elem  (n_line,)            element of each line entry
 border_*   ...                  positions of the body border entries (``ffrf.body_jacobian``)
 elem_map   (n_elem, 6, 6)       positions of the element entries
 con_map_*  ...                  positions of the constraint row, column and Hessian entries
 load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
+spring_map (n_spring, 2,2,6,6)  positions of the spring entries (row side, column side)
+line_map   (n_line, 7, 7)       positions of the line-load entries (theta, then ``d``)
 ========== ==================== =============================================================
 """
 
@@ -68,6 +78,10 @@ class SystemArrays(NamedTuple):
     elem_K: np.ndarray
     con_u0: np.ndarray
     load_u0: np.ndarray
+    spring_u0: np.ndarray
+    spring_par: np.ndarray
+    line_u0: np.ndarray
+    line_N: np.ndarray
     # topology
     body_ref: np.ndarray
     flex_off: np.ndarray
@@ -78,6 +92,10 @@ class SystemArrays(NamedTuple):
     con_dofs: np.ndarray
     load_dofs: np.ndarray
     torque_dofs: np.ndarray
+    spring_kind: np.ndarray
+    spring_dofs: np.ndarray
+    line_off: np.ndarray
+    line_elem: np.ndarray
     # pattern
     border_off: np.ndarray
     border_map: np.ndarray
@@ -86,6 +104,8 @@ class SystemArrays(NamedTuple):
     con_map_col: np.ndarray
     con_map_H: np.ndarray
     load_map: np.ndarray
+    spring_map: np.ndarray
+    line_map: np.ndarray
 
 
 class DesignArrays(NamedTuple):
@@ -103,6 +123,10 @@ class DesignArrays(NamedTuple):
     elem_K: np.ndarray
     con_u0: np.ndarray
     load_u0: np.ndarray
+    spring_u0: np.ndarray
+    spring_par: np.ndarray
+    line_u0: np.ndarray
+    line_N: np.ndarray
 
 
 #: The fields of :class:`SystemArrays` a design variable can change (the floating-point ones).
@@ -111,8 +135,9 @@ DESIGN_FIELDS = DesignArrays._fields
 
 class Parts(NamedTuple):
     """What a residual evaluation covers: index arrays of the bodies, elements, constraint
-    rows, point loads and torques, and a mask over the flexible coordinates. The residual
-    covers everything; a sensitivity pseudo-load only what one design variable changes."""
+    rows, loads (point and line loads), torques and spring-dampers, and a mask over the
+    flexible coordinates. The residual covers everything; a sensitivity pseudo-load only what
+    one design variable changes."""
 
     bodies: np.ndarray
     elements: np.ndarray
@@ -120,6 +145,7 @@ class Parts(NamedTuple):
     rows: np.ndarray
     loads: np.ndarray
     torques: np.ndarray
+    springs: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -127,7 +153,8 @@ def all_parts(S):
     """:class:`Parts` covering the whole system."""
     return Parts(np.arange(S.body_ref.shape[0]), np.arange(S.elem_fdof.shape[0]),
                  np.ones(S.flex_dof.shape[0], dtype=np.bool_), np.arange(S.con_kind.shape[0]),
-                 np.arange(S.load_dofs.shape[0]), np.arange(S.torque_dofs.shape[0]))
+                 np.arange(S.load_dofs.shape[0]), np.arange(S.torque_dofs.shape[0]),
+                 np.arange(S.spring_kind.shape[0]))
 
 
 @njit(cache=True)
@@ -136,7 +163,9 @@ def with_design(S, P, i):
     (:class:`DesignArrays`)."""
     return SystemArrays(P.gravity[i], P.body_scal[i], P.body_damp[i], P.flex_IS[i],
                         P.flex_I0S[i], P.flex_I0IS[i], P.elem_M[i], P.elem_St[i], P.elem_K[i],
-                        P.con_u0[i], P.load_u0[i], S.body_ref, S.flex_off, S.flex_dof,
+                        P.con_u0[i], P.load_u0[i], P.spring_u0[i], P.spring_par[i],
+                        P.line_u0[i], P.line_N[i], S.body_ref, S.flex_off, S.flex_dof,
                         S.elem_body, S.elem_fdof, S.con_kind, S.con_dofs, S.load_dofs,
-                        S.torque_dofs, S.border_off, S.border_map, S.elem_map, S.con_map_row,
-                        S.con_map_col, S.con_map_H, S.load_map)
+                        S.torque_dofs, S.spring_kind, S.spring_dofs, S.line_off, S.line_elem,
+                        S.border_off, S.border_map, S.elem_map, S.con_map_row, S.con_map_col,
+                        S.con_map_H, S.load_map, S.spring_map, S.line_map)

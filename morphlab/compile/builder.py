@@ -51,8 +51,9 @@ class Builder:
     for the meaning of each): ``dof_names``, ``q0``, ``v0``; per body ``body_ref``,
     ``body_scal``, ``body_damp``, ``flex_off``; per flexible coordinate ``flex_dof``,
     ``flex_IS``, ``flex_I0S``, ``flex_I0IS``; per element ``elem_*``; per constraint row
-    ``con_*`` (with its name, joint and the profile of a driven row); per point load
-    ``load_*``; per torque ``torque_*``; ``bodies`` (name -> :class:`BodyInfo`) and
+    ``con_*`` (with its name, joint and the profile of a driven row); per load (point or line
+    load) ``load_*``; per loaded element of a line load ``line_*``; per torque ``torque_*``;
+    per spring-damper ``spring_*``; ``bodies`` (name -> :class:`BodyInfo`) and
     ``locate`` (name -> the function that finds a material point of the body, set by the
     body's compile function; :meth:`point`).
     """
@@ -82,6 +83,8 @@ class Builder:
         self.con_drive: list = []
         self.load = {k: [] for k in ("dofs", "u0", "F0", "prof", "name")}
         self.torque = {k: [] for k in ("dofs", "T0", "prof", "name")}
+        self.spring = {k: [] for k in ("kind", "dofs", "u0", "par", "name")}
+        self.line = {k: [] for k in ("load", "elem", "u0", "N")}
 
     # ---- DOFs and bodies
     def add_dofs(self, names: list[str], q0, v0) -> np.ndarray:
@@ -175,6 +178,21 @@ class Builder:
                            ("prof", profile), ("name", name)):
             self.load[key].append(value)
 
+    def add_line(self, load: int, element: int, u0, N) -> None:
+        """A loaded element of the line load ``load`` (its index among the loads): the
+        element's row and its integrals ``u0 = (int ds, int u0 ds)`` (3,) and
+        ``N = int S_e ds`` (2, 6) (``morphlab.kernels.loads``)."""
+        for key, value in (("load", load), ("elem", element), ("u0", u0), ("N", N)):
+            self.line[key].append(value)
+
+    def add_spring(self, kind: int, pa, pb, u0, par, name: str) -> None:
+        """A spring-damper of ``kind`` (``morphlab.kernels.forces``) between the points ``pa``
+        and ``pb`` (:meth:`point`; their body-frame points ``u0`` (2, 2)) with
+        ``par = (k, c, s0, f0)``."""
+        for key, value in (("kind", kind), ("dofs", np.stack([pa[0], pb[0]])), ("u0", u0),
+                           ("par", par), ("name", name)):
+            self.spring[key].append(value)
+
     def add_torque(self, dofs, magnitude, profile: Profile, name: str) -> None:
         """A torque ``magnitude * profile(t)`` on the DOFs ``dofs`` (2,): a body angle and a
         nodal rotation (-1 if none)."""
@@ -195,7 +213,9 @@ class Builder:
             return np.array(lst, dtype=dtype_).reshape(shape)
 
         i64 = np.int64
-        e, c, ld, tq = self.elem, self.con, self.load, self.torque
+        e, c, ld, tq, sp, li = self.elem, self.con, self.load, self.torque, self.spring, self.line
+        line_off = np.zeros(len(ld["name"]) + 1, dtype=i64)
+        np.add.at(line_off, np.array(li["load"], dtype=i64) + 1, 1)
         return dict(
             n_dof=len(self.dof_names), n_con=len(c["kind"]),
             q0=np.array(self.q0, dtype=dt), v0=np.array(self.v0, dtype=dt),
@@ -217,6 +237,11 @@ class Builder:
             load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"], load_names=ld["name"],
             torque_dofs=arr(tq["dofs"], (-1, 2), i64), torque_T0=np.array(tq["T0"], dtype=dt),
             torque_prof=tq["prof"], torque_names=tq["name"],
+            spring_kind=np.array(sp["kind"], dtype=i64),
+            spring_dofs=arr(sp["dofs"], (-1, 2, 6), i64), spring_u0=arr(sp["u0"], (-1, 2, 2)),
+            spring_par=arr(sp["par"], (-1, 4)), spring_names=sp["name"],
+            line_off=np.cumsum(line_off), line_elem=np.array(li["elem"], dtype=i64),
+            line_u0=arr(li["u0"], (-1, 3)), line_N=arr(li["N"], (-1, 2, 6)),
             bodies=self.bodies, dof_names=self.dof_names, con_names=c["names"],
             con_joint=c["joint"],
         )

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import ModelError
 from ..model import Beam, Model
 from ..model.profiles import Profile
-from . import bodies, incremental, joints, loads  # noqa: F401 - they register the compile functions
+from . import bodies, forces, incremental, joints, loads  # noqa: F401 - they register the compile functions
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
 from .initial import initial_velocities, needs_initial_velocities
@@ -31,11 +31,18 @@ def _is_complex(value) -> bool:
     return False
 
 
+def _items(model: Model) -> list:
+    """Every body, joint, load and force element of ``model``, in the order they compile
+    (point forces before line loads: the load table's order)."""
+    return [*model.bodies, *model.joints, *model.forces, *getattr(model, "line_loads", ()),
+            *model.torques, *getattr(model, "springs", ())]
+
+
 def _dtype_of(model: Model):
     """complex128 if any number of the model is complex (a complex-step perturbation of a
     design variable), else float64. Every attribute of every body, joint and load is looked
     at, so a new kind of item needs nothing here."""
-    items = [*model.bodies, *model.joints, *model.forces, *model.torques]
+    items = _items(model)
     if _is_complex(model.gravity) or any(_is_complex(v) for item in items
                                          for v in vars(item).values()):
         return np.dtype(np.complex128)
@@ -44,9 +51,9 @@ def _dtype_of(model: Model):
 
 # what the Newton pattern is built from, and what it consists of (morphlab.pattern)
 _TOPOLOGY_KEYS = ("n_dof", "n_con", "body_ref", "flex_off", "flex_dof", "elem_fdof", "con_kind",
-                  "con_dofs", "load_dofs")
+                  "con_dofs", "load_dofs", "spring_kind", "spring_dofs", "line_off", "line_elem")
 _PATTERN_KEYS = ("indptr", "indices", "border_off", "border_map", "elem_map", "con_map_row",
-                 "con_map_col", "con_map_H", "load_map")
+                 "con_map_col", "con_map_H", "load_map", "spring_map", "line_map")
 
 
 def _same_topology(sysd: dict, like: System) -> bool:
@@ -89,7 +96,7 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
     builder = Builder(model, dt, record=record,
                       prior=incremental.record_of(like) if like is not None else None)
-    for item in [*model.bodies, *model.joints, *model.forces, *model.torques]:
+    for item in _items(model):
         compile_item(item, builder)
     sysd = dict(model=model, dtype=dt, **builder.arrays())
     extent = np.concatenate([np.real(np.asarray(b.nodes)) if isinstance(b, Beam)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.forces import SPRING_ANGLE
 from ..kernels.joints import ROW_ANGLE, ROW_SLIDE
 
 # entries of a side's 6 x 6 Hessian that can be nonzero (theta-theta, theta-w, w-theta)
@@ -102,6 +103,33 @@ def _con_hessian(cd, kind) -> tuple[np.ndarray, np.ndarray]:
     return Hr, Hc
 
 
+def _spring_entries(dofs, kind) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the spring-damper entries, (n_spring, 2, 2, 6, 6) indexed by the
+    side of the row and of the column DOF: every pair of the DOFs its measure depends on
+    (``R, theta, u, v`` of both points for a length, ``theta, phi`` for an angle)."""
+    n = dofs.shape[0]
+    used = np.where((kind == SPRING_ANGLE)[:, None], np.array([0, 0, 1, 0, 0, 1], bool),
+                    np.array([1, 1, 1, 1, 1, 0], bool))
+    d = np.where(used[:, None, :], dofs, -1)  # (n, 2, 6)
+    rows = np.broadcast_to(d[:, :, None, :, None], (n, 2, 2, 6, 6))
+    cols = np.broadcast_to(d[:, None, :, None, :], (n, 2, 2, 6, 6))
+    ok = (rows >= 0) & (cols >= 0)
+    return np.where(ok, rows, -1), np.where(ok, cols, -1)
+
+
+def _line_entries(s, gd) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the line-load entries, (n_line, 7, 7) over (theta, d_0..d_5) of
+    each loaded element: theta with itself and with every element coordinate, both ways."""
+    el = s["line_elem"]
+    local = np.concatenate([s["body_ref"][s["elem_body"][el], 2][:, None], gd[el]], axis=1)
+    rows = np.broadcast_to(local[:, :, None], (el.size, 7, 7)).copy()
+    cols = np.broadcast_to(local[:, None, :], (el.size, 7, 7)).copy()
+    border = np.zeros((7, 7), dtype=bool)
+    border[0, :] = border[:, 0] = True
+    ok = border[None] & (rows >= 0) & (cols >= 0)
+    return np.where(ok, rows, -1), np.where(ok, cols, -1)
+
+
 def newton_pattern(s) -> dict:
     """Fixed CSC pattern of the Newton matrix and the scatter map of every contribution."""
     n_dof, n_con = s["n_dof"], s["n_con"]
@@ -116,4 +144,6 @@ def newton_pattern(s) -> dict:
     pat.add("con_map_col", cd, crow)
     pat.add("con_map_H", *_con_hessian(cd, s["con_kind"]))
     pat.add("load_map", *_hessian(s["load_dofs"], True))
+    pat.add("spring_map", *_spring_entries(s["spring_dofs"], s["spring_kind"]))
+    pat.add("line_map", *_line_entries(s, gd.reshape(-1, 6)))
     return dict(pat.finish(), border_off=border_off)

@@ -118,6 +118,18 @@ class System:
     con_map_col: np.ndarray
     con_map_H: np.ndarray
     load_map: np.ndarray
+    # force elements (kernels.forces, kernels.loads); ``None`` in a file written before them
+    spring_kind: np.ndarray | None = None
+    spring_dofs: np.ndarray | None = None
+    spring_u0: np.ndarray | None = None
+    spring_par: np.ndarray | None = None
+    spring_map: np.ndarray | None = None
+    line_off: np.ndarray | None = None
+    line_elem: np.ndarray | None = None
+    line_u0: np.ndarray | None = None
+    line_N: np.ndarray | None = None
+    line_map: np.ndarray | None = None
+    spring_names: list = field(default_factory=list)
     bodies: dict = field(default_factory=dict)
     load_names: list = field(default_factory=list)
     torque_names: list = field(default_factory=list)
@@ -128,6 +140,19 @@ class System:
     #: (``morphlab.results.reactions``)
     con_sign: np.ndarray = field(default_factory=lambda: np.zeros(0))
     length_scale: float = 1.0
+
+    def __post_init__(self):
+        """Empty force-element tables where none were given (a system saved before them)."""
+        n_load = self.load_dofs.shape[0]
+        empty = {"spring_kind": ((0,), np.int64), "spring_dofs": ((0, 2, 6), np.int64),
+                 "spring_u0": ((0, 2, 2), self.dtype), "spring_par": ((0, 4), self.dtype),
+                 "spring_map": ((0, 2, 2, 6, 6), np.int64),
+                 "line_off": ((n_load + 1,), np.int64), "line_elem": ((0,), np.int64),
+                 "line_u0": ((0, 3), self.dtype), "line_N": ((0, 2, 6), self.dtype),
+                 "line_map": ((0, 7, 7), np.int64)}
+        for name, (shape, dtype) in empty.items():
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(shape, dtype=dtype))
 
     @property
     def n(self) -> int:

@@ -4,6 +4,7 @@ A model is a description only; :mod:`morphlab.compile` turns it into arrays.
 """
 
 from .bodies import Beam, Body, Ground, RigidBody
+from .forces import LineLoad, RotationalSpring, Spring
 from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
 from .model import Model
@@ -25,7 +26,7 @@ from .profiles import (
 
 __all__ = [
     "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Joint",
-    "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp", "Revolute",
-    "RigidBody", "Scaled", "Sine", "SmoothStep", "Sum", "Torque", "Weld",
-    "as_profile",
+    "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp",
+    "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine", "SmoothStep", "Spring", "Sum",
+    "Torque", "Weld", "as_profile",
 ]

@@ -19,6 +19,14 @@ import numpy as np
 
 from ..errors import ModelError
 from .bodies import Beam, Body, Ground, RigidBody
+from .forces import (
+    LineLoad,
+    RotationalSpring,
+    Spring,
+    make_line_load,
+    make_rotational_spring,
+    make_spring,
+)
 from .frames import drive_node
 from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
@@ -52,6 +60,8 @@ class Model:
         self.joints: list[Joint] = []
         self.forces: list[Force] = []
         self.torques: list[Torque] = []
+        self.springs: list[Spring | RotationalSpring] = []
+        self.line_loads: list[LineLoad] = []
 
     # ---- bodies
     def _register(self, body: Body) -> Body:
@@ -123,9 +133,12 @@ class Model:
         return name
 
     def _load_name(self, name, prefix, count):
+        """A unique name among the loads and force elements (``prefix<count>`` by default)."""
         name = f"{prefix}{count}" if name is None else _check_name(name, "load")
-        if any(ld.name == name for ld in self.forces + self.torques):
-            raise ModelError(f"model {self.name!r}: a load named {name!r} already exists")
+        if any(ld.name == name for ld in self.forces + self.torques + self.springs
+               + self.line_loads):
+            raise ModelError(f"model {self.name!r}: a load named {name!r} already exists "
+                             "(loads and force elements share one set of names)")
         return name
 
     def _check_point_on(self, body, at, what):
@@ -290,6 +303,90 @@ class Model:
         self.torques.append(tq)
         return tq
 
+    # ---- force elements (morphlab.model.forces; docs/theory.md §4.6)
+    def add_spring(self, name, body_a, body_b, *, at_a, at_b, stiffness, damping=0.0,
+                   rest_length=None, preload=0.0) -> Spring:
+        """Add a translational spring-damper between the point ``at_a`` of ``body_a`` and the
+        point ``at_b`` of ``body_b`` (global points of the initial configuration, nodes on a
+        beam; either body may be the ground).
+
+        Its tension ``f = stiffness (l - rest_length) + damping dl/dt + preload`` [N] acts along
+        the line between the points (positive pulls them together); ``l`` is their distance.
+
+        Parameters
+        ----------
+        stiffness : float >= 0
+            [N/mm].
+        damping : float >= 0
+            [N·s/mm].
+        rest_length : float >= 0, optional
+            [mm]; default the initial distance of the points.
+        preload : float
+            Constant tension [N] (negative: compression).
+
+        Raises
+        ------
+        ModelError
+            Unknown bodies, a point that is not a node of a beam, negative stiffness, damping
+            or rest length, coinciding points (the direction of the force is undefined), a name
+            already used.
+        """
+        name = self._load_name(name, "spring", len(self.springs))
+        sp = make_spring(self, name, body_a, body_b, at_a, at_b, stiffness, damping,
+                         rest_length, preload)
+        self.springs.append(sp)
+        return sp
+
+    def add_rotational_spring(self, name, joint_or_bodies, *, at_a=None, at_b=None, stiffness,
+                              damping=0.0, rest_angle=None, preload=0.0) -> RotationalSpring:
+        """Add a torsion spring-damper on the relative rotation ``psi`` of two bodies: across a
+        revolute joint (the joint or its name), or between a pair ``(body_a, body_b)`` (``at_a``
+        / ``at_b``: the node of a beam side, whose nodal rotation then counts; either body may
+        be the ground).
+
+        Its moment ``M = stiffness (psi - rest_angle) + damping dpsi/dt + preload`` [N·mm]
+        turns ``body_b`` forward and ``body_a`` back (``psi``: the rotation of ``a`` relative to
+        ``b``, counter-clockwise positive, counted from the initial configuration).
+
+        Parameters
+        ----------
+        stiffness : float >= 0
+            [N·mm/rad].
+        damping : float >= 0
+            [N·mm·s/rad].
+        rest_angle : float, optional
+            Relative rotation from the initial configuration at which the spring is relaxed
+            [rad]; default 0 (relaxed initially).
+        preload : float
+            Constant moment [N·mm].
+        """
+        name = self._load_name(name, "rotational_spring", len(self.springs))
+        sp = make_rotational_spring(self, name, joint_or_bodies, at_a, at_b, stiffness,
+                                    damping, rest_angle, preload)
+        self.springs.append(sp)
+        return sp
+
+    def add_line_load(self, name, beam, *, q, profile=None, elements=None) -> LineLoad:
+        """Add a distributed load ``q * profile(t)`` of fixed global direction on a beam.
+
+        Parameters
+        ----------
+        q : (2,)
+            Force per unit length of the undeformed beam, global frame [N/mm].
+        profile : Profile, number or callable, optional
+            Time factor (default 1).
+        elements : sequence of int, optional
+            Element indices of the beam (0 to n_elements - 1) the load acts on; default all.
+
+        The load is applied consistently with the beam's shape functions (work-equivalent),
+        on every floating frame that holds a loaded element.
+        """
+        name = self._load_name(name, "line_load", len(self.line_loads))
+        ld = make_line_load(self, name, beam, q, profile, elements)
+        self.line_loads.append(ld)
+        return ld
+
     def __repr__(self) -> str:
         return (f"Model({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
-                f"{len(self.forces)} forces, {len(self.torques)} torques)")
+                f"{len(self.forces)} forces, {len(self.torques)} torques, "
+                f"{len(self.springs)} springs, {len(self.line_loads)} line loads)")

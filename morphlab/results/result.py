@@ -13,7 +13,8 @@ import numpy as np
 from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
 from ..kernels.assemble import add_residual
-from ..kernels.joints import load_residual
+from ..kernels.forces import spring_measures
+from ..kernels.loads import load_residual
 from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
@@ -223,14 +224,30 @@ class Result:
         """Power the drive ``name`` delivers (torque times angular rate), (n_t,)."""
         return reactions.drive_power(self, name)
 
+    def spring(self, name: str) -> dict:
+        """Histories of the spring-damper ``name`` (n_t,) each: ``stretch`` (length minus rest
+        length [length], or relative rotation minus rest angle [rad]), its ``rate`` and the
+        ``force`` (tension, or moment) ``k stretch + c rate + f0``. Complex-safe: usable in a
+        response."""
+        s = self.system
+        if name not in s.spring_names:
+            known = ", ".join(repr(n) for n in s.spring_names) or "none"
+            raise ModelError(f"no spring-damper {name!r} in the model (spring-dampers: {known})")
+        i = s.spring_names.index(name)
+        meas = _spring_histories(s, self)[:, i]
+        k, c, s0, f0 = s.spring_par[i]
+        stretch = meas[:, 0] - s0
+        return {"stretch": stretch, "rate": meas[:, 1], "force": k * stretch + c * meas[:, 1] + f0}
+
     # ---- energy
     @property
     def energy(self) -> dict:
         """Energy balance over time: ``kinetic``, ``strain``, ``gravity`` (potential),
-        ``damping`` (dissipated), ``load_work`` (of applied forces and torques),
-        ``drive_work`` (of the drives), ``work`` (both), and ``total`` = kinetic + strain +
-        gravity; each (n_t,). ``total - work + damping`` is constant up to the integrator's
-        error (computed once, on first access)."""
+        ``spring`` (potential of the spring-dampers), ``damping`` (dissipated by the beams'
+        and the spring-dampers' damping), ``load_work`` (of applied forces, line loads and
+        torques), ``drive_work`` (of the drives), ``work`` (both), and ``total`` = kinetic +
+        strain + gravity + spring; each (n_t,). ``total - work + damping`` is constant up to
+        the integrator's error (computed once, on first access)."""
         if self.energy_cache is None:
             self.energy_cache = energy(self)
         return self.energy_cache
@@ -283,7 +300,8 @@ def _frames_of_nodes(info, q: np.ndarray):
 
 
 def energy(res: Result) -> dict:
-    """Kinetic, strain and gravitational energy, damping dissipation and external work."""
+    """Kinetic, strain, gravitational and spring energy, damping dissipation and external
+    work (:attr:`Result.energy`)."""
     if res.q is None or res.v is None:
         raise ModelError("the energy needs the histories of q and v: run with store "
                          "including 'q' and 'v'")
@@ -332,12 +350,40 @@ def energy(res: Result) -> dict:
                             np.sin(th) * cu[0] + np.cos(th) * cu[1]])
             r = np.real(q[ref[:2]]) * m + Acu
             grav[i] -= float(np.real(s.gravity) @ r)
+    spring, power_spring = _spring_energy(s, res)
     work = _cumulative(power_ext, res.t)
-    diss = _cumulative(power_damp, res.t)
+    diss = _cumulative(power_damp + power_spring, res.t)
     drive = _cumulative(reactions.drive_power_total(res), res.t)
-    return {"kinetic": kin, "strain": strain, "gravity": grav, "damping": diss,
-            "load_work": work, "drive_work": drive, "work": work + drive,
-            "total": kin + strain + grav}
+    return {"kinetic": kin, "strain": strain, "gravity": grav, "spring": spring,
+            "damping": diss, "load_work": work, "drive_work": drive, "work": work + drive,
+            "total": kin + strain + grav + spring}
+
+
+def _spring_histories(s: System, res: Result) -> np.ndarray:
+    """The measure ``s`` and rate ``s'`` of every spring-damper at every time,
+    (n_t, n_spring, 2) (``kernels.forces.spring_measures``)."""
+    if res.q is None or res.v is None:
+        raise ModelError("the spring-dampers need the histories of q and v: run with store "
+                         "including 'q' and 'v'")
+    dt = np.result_type(s.dtype, res.q.dtype, res.v.dtype)
+    out = np.zeros((res.n_t, s.spring_kind.shape[0], 2), dtype=dt)
+    if out.size:
+        spring_measures(kernel_arrays(s, dt), np.ascontiguousarray(res.q, dtype=dt),
+                        np.ascontiguousarray(res.v, dtype=dt), out)
+    return out
+
+
+def _spring_energy(s: System, res: Result) -> tuple[np.ndarray, np.ndarray]:
+    """Potential ``k (x^2)/2 + f0 x`` (``x = s - s0``) of the spring-dampers summed, and the
+    power ``c s'^2`` their dampers dissipate, at every time (real parts, (n_t,) each)."""
+    n_t, n_s = res.n_t, s.spring_kind.shape[0]
+    if n_s == 0 or n_t == 0:
+        return np.zeros(n_t), np.zeros(n_t)
+    out = _spring_histories(s, res)
+    k, c, s0, f0 = np.real(s.spring_par).T
+    x = np.real(out[..., 0]) - s0
+    return (np.sum(0.5 * k * x * x + f0 * x, axis=1),
+            np.sum(c * np.real(out[..., 1]) ** 2, axis=1))
 
 
 def _cumulative(power: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -39,7 +39,9 @@ def relative_steps(p0: dict, names: list[str], step: float) -> dict[str, float]:
 _TOPOLOGY = (("load_dofs", "force", "load_names"), ("torque_dofs", "torque", "torque_names"),
              ("con_dofs", "constraint row", "con_names"), ("con_kind", "constraint row",
                                                            "con_names"),
-             ("elem_dofs", "element", None), ("body_ref", "body", None))
+             ("elem_dofs", "element", None), ("body_ref", "body", None),
+             ("spring_dofs", "spring", "spring_names"), ("spring_kind", "spring", "spring_names"),
+             ("line_off", "line-load range", None), ("line_elem", "line-load element", None))
 
 
 def check_same_layout(a: System, b: System, name: str) -> None:
@@ -200,10 +202,11 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
 
 def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeTable,
                    tabi: TimeTable) -> tuple:
-    """The bodies, elements, flexible coordinates, constraint rows, loads and torques whose
-    data differ between the nominal arrays ``S0`` / time table ``tab0`` and a perturbed
-    design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must evaluate. A changed
-    element brings its body and its coordinates."""
+    """The bodies, elements, flexible coordinates, constraint rows, loads, torques and
+    spring-dampers whose data differ between the nominal arrays ``S0`` / time table ``tab0``
+    and a perturbed design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must
+    evaluate. A changed element brings its body and its coordinates; a changed element entry
+    of a line load brings its load."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
 
     def changed(name):
@@ -229,21 +232,31 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
     rows = (changed("con_u0") | _changed(tabi.C, tab0.C, 1) | _changed(tabi.CD, tab0.CD, 1)
             | _changed(tabi.CDD, tab0.CDD, 1))
     loads = changed("load_u0") | _changed(tabi.F, tab0.F, 1)
+    line = changed("line_u0") | changed("line_N")
+    if line.any():
+        owner = np.repeat(np.arange(loads.size), np.diff(sys0.line_off))
+        loads[owner[line]] = True
     torques = _changed(tabi.T, tab0.T, 1)
+    springs = changed("spring_u0") | changed("spring_par")
     return tuple(np.flatnonzero(m).astype(np.int64)
-                 for m in (body, elem, flex, rows, loads, torques))
+                 for m in (body, elem, flex, rows, loads, torques, springs))
 
 
 def touched_rows(sys0: System, parts: tuple) -> np.ndarray:
     """The residual rows a residual over ``parts`` (of :func:`variable_parts`) can change,
     sorted: the reference rows of its bodies and the rows of its flexible coordinates (the
     body kernel masks the others), each constraint row with the coordinates of both its sides
-    (the multiplier term), the coordinates of its point loads and torques."""
-    bodies, _, flex, rows, loads, torques = parts
+    (the multiplier term), the coordinates of its point loads, torques and spring-dampers, and
+    the frame and element coordinates of its line loads' elements."""
+    bodies, _, flex, rows, loads, torques, springs = parts
     n_dof = sys0.n_dof
+    entries = np.concatenate([np.arange(sys0.line_off[i], sys0.line_off[i + 1])
+                              for i in loads] + [np.zeros(0, np.int64)]).astype(np.int64)
+    elem = sys0.line_elem[entries]
     pieces = [sys0.body_ref[bodies].ravel(), sys0.flex_dof[flex], n_dof + rows,
               sys0.con_dofs[rows].ravel(), sys0.load_dofs[loads].ravel(),
-              sys0.torque_dofs[torques].ravel()]
+              sys0.torque_dofs[torques].ravel(), sys0.spring_dofs[springs].ravel(),
+              sys0.body_ref[sys0.elem_body[elem]].ravel(), sys0.elem_dofs[elem].ravel()]
     out = np.unique(np.concatenate([np.asarray(x, dtype=np.int64) for x in pieces]))
     return out[out >= 0]
 
@@ -251,7 +264,7 @@ def touched_rows(sys0: System, parts: tuple) -> np.ndarray:
 def pack_parts(parts: list) -> tuple:
     """Per-variable index lists as ``(offsets, indices)`` pairs (CSR over the variables)."""
     out = []
-    for kind in range(6):
+    for kind in range(7):
         lists = [p[kind] for p in parts]
         off = np.zeros(len(lists) + 1, dtype=np.int64)
         off[1:] = np.cumsum([len(x) for x in lists])
