@@ -21,7 +21,7 @@ for the length
 import numpy as np
 from numba import njit
 
-from .joints import ROW_X, ROW_Y, _psi, _side_of
+from .joints import _point_of, _psi
 
 #: Kinds of spring-damper (``spring_kind``): distance of two points, relative rotation.
 SPRING_LENGTH, SPRING_ANGLE = 0, 1
@@ -68,10 +68,10 @@ def _terms(S, i, q, v, G):
         s = _psi(dP, q, zero) - _psi(dQ, q, zero)
         sd = _psi(dP, v, zero) - _psi(dQ, v, zero)
         return s, sd, zero, zero, zero + 1.0
-    xP, _, DxP, _, _, _ = _side_of(ROW_X, dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
-    yP, _, DyP, _, _, _ = _side_of(ROW_Y, dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
-    xQ, _, DxQ, _, _, _ = _side_of(ROW_X, dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
-    yQ, _, DyQ, _, _, _ = _side_of(ROW_Y, dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
+    (xP, _, DxP, _, _, _), (yP, _, DyP, _, _, _) = _point_of(dP, u[i, 0, 0], u[i, 0, 1], q, v,
+                                                             v)
+    (xQ, _, DxQ, _, _, _), (yQ, _, DyQ, _, _, _) = _point_of(dQ, u[i, 1, 0], u[i, 1, 1], q, v,
+                                                             v)
     _put(G, 2, 0, DxP, 1.0)
     _put(G, 3, 0, DyP, 1.0)
     _put(G, 2, 6, DxQ, -1.0)
