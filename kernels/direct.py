@@ -151,9 +151,9 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                    b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
     ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
-    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time arrays
-    (table ``tab_of[i]`` of ``TAB``), or the nominal ``S`` and table 0. With a complex step (``pert_i = i h``) this is
-    ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
+    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time
+    arrays table ``tab_of[i]`` of ``TAB``, or the nominal ``S`` and table 0. With a complex
+    step (``pert_i = i h``) this is ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
 
     Parameters
     ----------
