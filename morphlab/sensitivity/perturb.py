@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..compile import System, compile_model, kernel_arrays, time_table
+from ..compile.incremental import fresh_rows
 from ..compile.system import SystemArrays, TimeTable
 from ..errors import MorphlabError, SensitivityError
 from ..kernels.system import DESIGN_FIELDS, DesignArrays
@@ -172,8 +173,8 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     P = DesignArrays(*(np.ascontiguousarray(np.stack([getattr(Sk, k) for Sk in S_all]))
                        for k in DESIGN_FIELDS))
     tab_of, tables = distinct_tables(sys0, psys, times, dt)
-    each = [variable_parts(sys0, S_nom, Sk, tables[0], tables[t] if t else None)
-            for Sk, t in zip(S_all, tab_of)]
+    each = [variable_parts(sys0, S_nom, Sk, tables[0], tables[t] if t else None,
+                           fresh_rows(s)) for Sk, t, s in zip(S_all, tab_of, psys)]
     parts = pack_parts(each)
     rows = [touched_rows(sys0, p) for p in each]
     off = np.zeros(len(rows) + 1, dtype=np.int64)
@@ -233,15 +234,22 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
 
 
 def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeTable,
-                   tabi: TimeTable | None) -> tuple:
+                   tabi: TimeTable | None, fresh: dict | None = None) -> tuple:
     """The bodies, elements, flexible coordinates, constraint rows, loads and torques whose
     data differ between the nominal arrays ``S0`` / time table ``tab0`` and a perturbed
     design's ``Si`` / ``tabi`` (None: the nominal table): the parts its explicit pseudo-load
-    must evaluate. A changed element brings its body and its coordinates."""
+    must evaluate. A changed element brings its body and its coordinates. ``fresh``: the rows
+    of each array the design's compile formed afresh (``incremental.fresh_rows``; the others
+    are the nominal's), compared alone; None: every row is compared."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
 
     def changed(name):
-        return _changed(getattr(Si, name), getattr(S0, name))
+        rows = fresh.get(name) if fresh is not None else None
+        if rows is None:
+            return _changed(getattr(Si, name), getattr(S0, name))
+        out = np.zeros(len(getattr(S0, name)), dtype=bool)
+        out[rows] = _changed(getattr(Si, name)[rows], getattr(S0, name)[rows])
+        return out
 
     damp = changed("body_damp")
     elem = (changed("elem_M") | changed("elem_St") | changed("elem_K")
@@ -253,13 +261,10 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
     if np.any(Si.gravity != S0.gravity):  # gravity acts on every body and every coordinate
         body[:] = True
         flex[:] = True
-    for b in range(n_body):
-        lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
-        body[b] |= bool(flex[lo:hi].any())
-        if damp[b]:
-            flex[lo:hi] = True
+    owner = np.repeat(np.arange(n_body), np.diff(sys0.flex_off))  # body of each coordinate
+    body |= np.bincount(owner[flex], minlength=n_body) > 0
+    flex |= damp[owner]
     body[sys0.elem_body[elem]] = True
-    # time tables (n_t, ...): a row changes if it changes at any time
     rows, loads = changed("con_u0"), changed("load_u0")
     torques = np.zeros(tab0.T.shape[1], dtype=bool)
     if tabi is not None:  # time tables (n_t, ...): a row changes if it changes at any time
