@@ -119,12 +119,13 @@ def _add(B, H, j):
 
 @njit(cache=True)
 def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale, b0,
-                           b1, TAB, tab0, k_old, k_new, n_dof, pert, work, MU, grad):
+                           b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, MU, grad):
     """The design's share of the adjoint gradient over a block of steps:
     ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial derivative of step
     ``j``'s residual along variable ``i`` formed as in
     :func:`~morphlab.kernels.direct.explicit_loads` (complex step or forward difference over
-    the parts ``i`` changes) and contracted with ``MU[j]`` (K, n, m) over the residual rows
+    the parts ``i`` changes, its time arrays table ``tab_of[i]`` of ``TAB``, the nominal's
+    table 0) and contracted with ``MU[j]`` (K, n, m) over the residual rows
     those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
     system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
@@ -144,18 +145,21 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
         for k in flex:
             flex_on[k] = True
         Si = with_design(S, P, i)
+        ti = tab_of[i]
         for j in range(MU.shape[0]):
             ko, kn = k_old[j], k_new[j]
-            tai_old = (TAB[0][ko, i], TAB[1][ko, i], TAB[2][ko, i], TAB[3][ko, i],
-                       TAB[4][ko, i])
-            tai_new = (TAB[0][kn, i], TAB[1][kn, i], TAB[2][kn, i], TAB[3][kn, i],
-                       TAB[4][kn, i])
+            tai_old = (TAB[0][ko, ti], TAB[1][ko, ti], TAB[2][ko, ti], TAB[3][ko, ti],
+                       TAB[4][ko, ti])
+            tai_new = (TAB[0][kn, ti], TAB[1][kn, ti], TAB[2][kn, ti], TAB[3][kn, ti],
+                       TAB[4][kn, ti])
             add_explicit_residual(Si, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                   tai_new, has_old, Q[j], V[j], A[j], L[j], w_old, tai_old,
                                   scale, b0, b1, n_dof, R)
             if forward:
-                ta_old = (tab0[0][ko], tab0[1][ko], tab0[2][ko], tab0[3][ko], tab0[4][ko])
-                ta_new = (tab0[0][kn], tab0[1][kn], tab0[2][kn], tab0[3][kn], tab0[4][kn])
+                ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
+                          TAB[4][ko, 0])
+                ta_new = (TAB[0][kn, 0], TAB[1][kn, 0], TAB[2][kn, 0], TAB[3][kn, 0],
+                          TAB[4][kn, 0])
                 add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                       ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
                                       scale, b0, b1, n_dof, R0)

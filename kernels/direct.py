@@ -149,12 +149,12 @@ def parts_of(parts, i, flex_on):
 
 @njit(cache=True)
 def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, scale,
-                   b0, b1, TAB, tab0, k_old, k_new, n_dof, pert, work, rhs):
+                   b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
     ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
-    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time arrays
-    ``TA[.][i]``, or the nominal ``S``, ``ta``. With a complex step (``pert_i = i h``) this is
-    ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
+    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time
+    arrays table ``tab_of[i]`` of ``TAB``, or the nominal ``S`` and table 0. With a complex
+    step (``pert_i = i h``) this is ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
 
     Parameters
     ----------
@@ -171,8 +171,10 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
         real: with complex data only the products with changed data are complex (the
         kernels' temporaries take the dtype of the residual), cheaper than casting the state
         to complex.
-    TAB : tuple ``(C, CD, CDD, F, T)`` with leading axes (n_t, n_x)
-        Time arrays of each design at every time; ``tab0`` the nominal ones (leading n_t).
+    TAB : tuple ``(C, CD, CDD, F, T)`` with leading axes (n_t, n_tab)
+        The distinct time arrays of the designs at every time, table 0 the nominal one.
+    tab_of : (n_x,) int64
+        The table of each variable's design (0 where it changes no profile or constant).
     k_old, k_new : int
         Time indices of ``t_n`` and ``t_{n+1}``.
     pert : (n_x,)
@@ -195,18 +197,19 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
             continue  # the variable changes only the initial state
         for k in flex:
             flex_on[k] = True
-        tai_old = (TAB[0][k_old, i], TAB[1][k_old, i], TAB[2][k_old, i], TAB[3][k_old, i],
-                   TAB[4][k_old, i])
-        tai_new = (TAB[0][k_new, i], TAB[1][k_new, i], TAB[2][k_new, i], TAB[3][k_new, i],
-                   TAB[4][k_new, i])
+        ti = tab_of[i]
+        tai_old = (TAB[0][k_old, ti], TAB[1][k_old, ti], TAB[2][k_old, ti], TAB[3][k_old, ti],
+                   TAB[4][k_old, ti])
+        tai_new = (TAB[0][k_new, ti], TAB[1][k_new, ti], TAB[2][k_new, ti], TAB[3][k_new, ti],
+                   TAB[4][k_new, ti])
         _explicit_residual(with_design(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
                            tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
                            b0, b1, n_dof, R)
         if forward:
-            ta_old = (tab0[0][k_old], tab0[1][k_old], tab0[2][k_old], tab0[3][k_old],
-                      tab0[4][k_old])
-            ta_new = (tab0[0][k_new], tab0[1][k_new], tab0[2][k_new], tab0[3][k_new],
-                      tab0[4][k_new])
+            ta_old = (TAB[0][k_old, 0], TAB[1][k_old, 0], TAB[2][k_old, 0], TAB[3][k_old, 0],
+                      TAB[4][k_old, 0])
+            ta_new = (TAB[0][k_new, 0], TAB[1][k_new, 0], TAB[2][k_new, 0], TAB[3][k_new, 0],
+                      TAB[4][k_new, 0])
             _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
                                s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
                                R0)
@@ -221,7 +224,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
 
 
 @njit(cache=True)
-def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB, tab0,
+def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB, tab_of,
                    k_old, k_new, n_dof, pert, work, E):
     """:func:`explicit_loads` of ``K`` consecutive steps in one call: step ``j`` goes from the
     state ``(Q[j], V[j], A[j], L[j])`` at time index ``k_old[j]`` to ``(Q[j+1], ...)`` at
@@ -231,7 +234,7 @@ def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1
     passes ~75 arrays)."""
     for j in range(E.shape[0]):
         explicit_loads(S, P, parts, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
-                       Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, TAB, tab0, k_old[j],
+                       Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, TAB, tab_of, k_old[j],
                        k_new[j], n_dof, pert, work, E[j])
 
 

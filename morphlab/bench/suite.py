@@ -331,7 +331,7 @@ def case_floor(repeats: int, quick: bool) -> dict:
             stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, *mats, Z),
         "partial derivatives, 5 variables": lambda: explicit_loads(
             data.S_nom, data.P, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
-            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab0,
+            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
             k - 1, k, n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), rhs),
     }
     us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}

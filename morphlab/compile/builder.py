@@ -66,6 +66,10 @@ class Builder:
         # ``record``, read from ``prior`` when compiling a perturbed design
         self.record: dict | None = {} if record else None
         self.prior = prior
+        # the snapshots between which entries were copied from the prior's Builder (None: not
+        # at the same positions), and the nominal's formed arrays (incremental.patched_arrays)
+        self.copied: list | None = [] if prior is not None else None
+        self.formed: dict | None = None
         self.bodies: dict[str, BodyInfo] = {}
         self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)
         self.dof_names: list[str] = []
@@ -201,47 +205,62 @@ class Builder:
             self.torque[key].append(value)
 
     # ---- the result
-    def arrays(self) -> dict:
-        """The System fields accumulated (arrays of the right dtype and shape)."""
-        dt = self.dtype
-
-        def cat(lst, shape, dtype_=dt):
-            return np.ascontiguousarray(np.concatenate(lst) if lst else np.zeros(shape, dtype_),
-                                        dtype=dtype_)
-
-        def arr(lst, shape, dtype_=dt):
-            return np.array(lst, dtype=dtype_).reshape(shape)
-
-        i64 = np.int64
-        e, c, ld, tq, sp, li = self.elem, self.con, self.load, self.torque, self.spring, self.line
+    def arrays(self, lists: dict | None = None) -> dict:
+        """The System fields accumulated (arrays of the right dtype and shape); ``lists``:
+        those of :meth:`list_arrays` when already formed (a perturbed design's, patched from
+        the nominal's by :func:`morphlab.compile.incremental.patched_arrays`)."""
+        dt, i64 = self.dtype, np.int64
+        ld, tq, sp, li = self.load, self.torque, self.spring, self.line
+        # line loads are rows of the load table: the range of each load's element entries
         line_off = np.zeros(len(ld["name"]) + 1, dtype=i64)
         np.add.at(line_off, np.array(li["load"], dtype=i64) + 1, 1)
         return dict(
+            **(self.list_arrays() if lists is None else lists),
+            gravity=np.asarray(self.model.gravity, dtype=dt),
+            load_dofs=_arr(ld["dofs"], (-1, 6), i64), load_u0=_arr(ld["u0"], (-1, 2), dt),
+            load_F0=_arr(ld["F0"], (-1, 2), dt), load_prof=ld["prof"], load_names=ld["name"],
+            torque_dofs=_arr(tq["dofs"], (-1, 2), i64), torque_T0=np.array(tq["T0"], dtype=dt),
+            torque_prof=tq["prof"], torque_names=tq["name"], bodies=self.bodies,
+            spring_kind=np.array(sp["kind"], dtype=i64),
+            spring_dofs=_arr(sp["dofs"], (-1, 2, 6), i64),
+            spring_u0=_arr(sp["u0"], (-1, 2, 2), dt), spring_par=_arr(sp["par"], (-1, 4), dt),
+            spring_names=sp["name"], line_off=np.cumsum(line_off),
+            line_elem=np.array(li["elem"], dtype=i64), line_u0=_arr(li["u0"], (-1, 3), dt),
+            line_N=_arr(li["N"], (-1, 2, 6), dt),
+        )
+
+    def list_arrays(self) -> dict:
+        """The System fields formed from the lists an incremental compile copies from the
+        nominal's (:data:`morphlab.compile.incremental._LISTS`): DOFs, bodies, flexible
+        coordinates, elements and constraint rows."""
+        dt, i64 = self.dtype, np.int64
+        e, c = self.elem, self.con
+        return dict(
             n_dof=len(self.dof_names), n_con=len(c["kind"]),
             q0=np.array(self.q0, dtype=dt), v0=np.array(self.v0, dtype=dt),
-            gravity=np.asarray(self.model.gravity, dtype=dt),
-            body_ref=arr(self.body_ref, (-1, 3), i64), body_scal=arr(self.body_scal, (-1, 4)),
+            body_ref=_arr(self.body_ref, (-1, 3), i64),
+            body_scal=_arr(self.body_scal, (-1, 4), dt),
             body_damp=np.array(self.body_damp, dtype=dt),
             flex_off=np.array(self.flex_off, dtype=i64), flex_dof=np.array(self.flex_dof, i64),
-            flex_IS=cat(self.flex["IS"], (0, 2)), flex_I0S=cat(self.flex["I0S"], (0,)),
-            flex_I0IS=cat(self.flex["I0IS"], (0,)),
-            elem_body=cat(e["body"], (0,), i64), elem_fdof=cat(e["fdof"], (0, 6), i64),
-            elem_dofs=cat(e["dofs"], (0, 6), i64), elem_M=cat(e["M"], (0, 6, 6)),
-            elem_St=cat(e["St"], (0, 6, 6)), elem_K=cat(e["K"], (0, 6, 6)),
-            elem_B=cat(e["B"], (0, 2, 2, 6)),
-            con_kind=np.array(c["kind"], dtype=i64), con_dofs=arr(c["dofs"], (-1, 2, 6), i64),
-            con_u0=arr(c["u0"], (-1, 2, 3)), con_c0=np.array(c["c0"], dtype=dt),
-            con_sign=np.array(c["sign"], dtype=np.float64),
-            con_drive=self.con_drive,
-            load_dofs=arr(ld["dofs"], (-1, 6), i64), load_u0=arr(ld["u0"], (-1, 2)),
-            load_F0=arr(ld["F0"], (-1, 2)), load_prof=ld["prof"], load_names=ld["name"],
-            torque_dofs=arr(tq["dofs"], (-1, 2), i64), torque_T0=np.array(tq["T0"], dtype=dt),
-            torque_prof=tq["prof"], torque_names=tq["name"],
-            spring_kind=np.array(sp["kind"], dtype=i64),
-            spring_dofs=arr(sp["dofs"], (-1, 2, 6), i64), spring_u0=arr(sp["u0"], (-1, 2, 2)),
-            spring_par=arr(sp["par"], (-1, 4)), spring_names=sp["name"],
-            line_off=np.cumsum(line_off), line_elem=np.array(li["elem"], dtype=i64),
-            line_u0=arr(li["u0"], (-1, 3)), line_N=arr(li["N"], (-1, 2, 6)),
-            bodies=self.bodies, dof_names=self.dof_names, con_names=c["names"],
-            con_joint=c["joint"],
+            flex_IS=_cat(self.flex["IS"], (0, 2), dt), flex_I0S=_cat(self.flex["I0S"], (0,), dt),
+            flex_I0IS=_cat(self.flex["I0IS"], (0,), dt),
+            elem_body=_cat(e["body"], (0,), i64), elem_fdof=_cat(e["fdof"], (0, 6), i64),
+            elem_dofs=_cat(e["dofs"], (0, 6), i64), elem_M=_cat(e["M"], (0, 6, 6), dt),
+            elem_St=_cat(e["St"], (0, 6, 6), dt), elem_K=_cat(e["K"], (0, 6, 6), dt),
+            elem_B=_cat(e["B"], (0, 2, 2, 6), dt),
+            con_kind=np.array(c["kind"], dtype=i64), con_dofs=_arr(c["dofs"], (-1, 2, 6), i64),
+            con_u0=_arr(c["u0"], (-1, 2, 3), dt), con_c0=np.array(c["c0"], dtype=dt),
+            con_sign=np.array(c["sign"], dtype=np.float64), con_drive=self.con_drive,
+            dof_names=self.dof_names, con_names=c["names"], con_joint=c["joint"],
         )
+
+
+def _cat(lst: list, shape: tuple, dtype) -> np.ndarray:
+    """The chunks ``lst`` concatenated (``shape``, empty, if there are none)."""
+    return np.ascontiguousarray(np.concatenate(lst) if lst else np.zeros(shape, dtype),
+                                dtype=dtype)
+
+
+def _arr(lst: list, shape: tuple, dtype) -> np.ndarray:
+    """The entries ``lst`` as one array of ``shape``."""
+    return np.array(lst, dtype=dtype).reshape(shape)

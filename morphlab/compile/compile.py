@@ -98,7 +98,10 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
                       prior=incremental.record_of(like) if like is not None else None)
     for item in _items(model):
         compile_item(item, builder)
-    sysd = dict(model=model, dtype=dt, **builder.arrays())
+    patched = incremental.patched_arrays(builder) if builder.copied else None
+    sysd = dict(model=model, dtype=dt, **builder.arrays(patched[0] if patched else None))
+    if record:
+        incremental.keep_formed(builder, sysd)
     extent = np.concatenate([np.real(np.asarray(b.nodes)) if isinstance(b, Beam)
                              else np.real(np.asarray(b.position))[None] for b in model.bodies])
     for j in model.joints:
@@ -127,4 +130,6 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         check_initial(system, positions=False)
     if record:
         incremental.remember(system, builder.record)
+    if patched:
+        incremental.remember_fresh(system, patched[1])
     return system

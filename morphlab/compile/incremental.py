@@ -47,7 +47,11 @@ def snapshot(b) -> tuple:
 
 def extend_from(b, src, s0: tuple, s1: tuple) -> None:
     """Append to ``b`` the entries ``src`` (another Builder) added between its snapshots
-    ``s0`` and ``s1``."""
+    ``s0`` and ``s1``; noted in ``b.copied`` when they land at the same positions."""
+    if b.copied is not None and snapshot(b) == s0:
+        b.copied.append((s0, s1))
+    elif b.copied is not None:
+        b.copied = None
     for (a, k), i0, i1 in zip(_LISTS, s0, s1):
         if i1 > i0:
             _list(b, a, k).extend(_list(src, a, k)[i0:i1])
@@ -134,18 +138,115 @@ def changed_frames(body, rec: BeamRecord) -> np.ndarray | None:
     return np.flatnonzero(hit)
 
 
-# the records of nominal systems, by id (a System is unhashable): (weak reference, records)
+# what is kept per system, by id (a System is unhashable): (weak reference, value); the
+# records of nominal systems and the rows perturbed systems compiled afresh
 _RECORDS: dict = {}
+_FRESH: dict = {}
+
+
+def _keep(store: dict, system, value) -> None:
+    for key in [k for k, (ref, _) in store.items() if ref() is None]:
+        del store[key]
+    store[id(system)] = (weakref.ref(system), value)
+
+
+def _kept(store: dict, system):
+    entry = store.get(id(system))
+    return entry[1] if entry is not None and entry[0]() is system else None
 
 
 def remember(system, record: dict) -> None:
     """Keep ``record`` (beam name -> BeamRecord) for ``system`` while it lives."""
-    for key in [k for k, (ref, _) in _RECORDS.items() if ref() is None]:
-        del _RECORDS[key]
-    _RECORDS[id(system)] = (weakref.ref(system), record)
+    _keep(_RECORDS, system, record)
 
 
 def record_of(system) -> dict | None:
     """The record kept for ``system`` (None if it was compiled without one)."""
-    entry = _RECORDS.get(id(system))
-    return entry[1] if entry is not None and entry[0]() is system else None
+    return _kept(_RECORDS, system)
+
+
+def remember_fresh(system, fresh: dict) -> None:
+    """Keep ``fresh`` (:func:`patched_arrays`) for the perturbed ``system`` while it lives."""
+    _keep(_FRESH, system, fresh)
+
+
+def fresh_rows(system) -> dict | None:
+    """For a system compiled by patching the nominal's arrays: field -> the rows (int64,
+    along the first axis) compiled afresh; every other row holds the nominal's entry, cast.
+    None for a system compiled in full."""
+    return _kept(_FRESH, system)
+
+
+# ---------------------------------------------------- the arrays, patched from the nominal's
+#: The array fields formed from the Builder's lists (``Builder.list_arrays``): the list, whether
+#: its entries are chunks of rows (else one row each), and the dtype ("f": the System's,
+#: "i": int64, "r": float64).
+_FIELDS = {"q0": ("q0", None, False, "f"), "v0": ("v0", None, False, "f"),
+           "body_ref": ("body_ref", None, False, "i"),
+           "body_scal": ("body_scal", None, False, "f"),
+           "body_damp": ("body_damp", None, False, "f"),
+           "flex_off": ("flex_off", None, False, "i"),
+           "flex_dof": ("flex_dof", None, False, "i"),
+           **{f"flex_{k}": ("flex", k, True, "f") for k in ("IS", "I0S", "I0IS")},
+           **{f"elem_{k}": ("elem", k, True, "i") for k in ("body", "fdof", "dofs")},
+           **{f"elem_{k}": ("elem", k, True, "f") for k in ("M", "St", "K", "B")},
+           **{f"con_{k}": ("con", k, False, "i") for k in ("kind", "dofs")},
+           **{f"con_{k}": ("con", k, False, "f") for k in ("u0", "c0")},
+           "con_sign": ("con", "sign", False, "r")}
+
+
+def keep_formed(b, arrays: dict) -> None:
+    """Keep copies of the nominal's arrays (``b`` its Builder) for :func:`patched_arrays`."""
+    b.formed = {k: np.array(arrays[k]) for k in _FIELDS}
+
+
+def _fresh_spans(copied: list, j: int, n: int) -> list:
+    """The ranges of list ``j`` (``n`` entries) not copied: the complement of ``copied``."""
+    spans, at = [], 0
+    for i0, i1 in sorted((s0[j], s1[j]) for s0, s1 in copied if s1[j] > s0[j]):
+        if i0 > at:
+            spans.append((at, i0))
+        at = max(at, i1)
+    return spans + [(at, n)] if n > at else spans
+
+
+def _offsets(src, attr: str, key) -> np.ndarray:
+    """First row of every chunk of a list of ``src`` (the nominal's Builder), and the end."""
+    cache = src.__dict__.setdefault("chunk_offsets", {})
+    if (attr, key) not in cache:
+        cache[attr, key] = np.concatenate(
+            [[0], np.cumsum([len(x) for x in _list(src, attr, key)])]).astype(np.int64)
+    return cache[attr, key]
+
+
+def patched_arrays(b) -> tuple[dict, dict] | None:
+    """``(Builder.list_arrays(), fresh)`` of a perturbed design's Builder ``b`` formed from
+    the nominal's arrays, overwritten only at the entries ``b`` did not copy (its changed
+    frames, their frame joints and the items compiled in full): the same arrays as the
+    Builder's, at the cost of the changed entries. ``fresh``: field -> the rows overwritten.
+    None where the copies are not at the nominal's positions (then the arrays are formed in
+    full)."""
+    rec = next(iter(b.prior.values()), None) if b.prior else None
+    src = rec.builder if rec is not None else None
+    if not b.copied or src is None or src.formed is None or snapshot(b) != snapshot(src):
+        return None
+    index = {ak: j for j, ak in enumerate(_LISTS)}
+    out = dict(n_dof=len(b.dof_names), n_con=len(b.con["kind"]), con_drive=b.con_drive,
+               dof_names=b.dof_names, con_names=b.con["names"], con_joint=b.con["joint"])
+    fresh = {}
+    for field, (attr, key, chunked, kind) in _FIELDS.items():
+        lst = _list(b, attr, key)
+        dtype = {"f": b.dtype, "i": np.int64, "r": np.float64}[kind]
+        arr = src.formed[field].astype(dtype)
+        off = _offsets(src, attr, key) if chunked else None
+        rows = []
+        for i0, i1 in _fresh_spans(b.copied, index[attr, key], len(lst)):
+            r0, r1 = (int(off[i0]), int(off[i1])) if chunked else (i0, i1)
+            val = np.concatenate(lst[i0:i1]) if chunked else np.array(lst[i0:i1], dtype=dtype)
+            if val.size != arr[r0:r1].size:
+                return None
+            arr[r0:r1] = val.reshape(arr[r0:r1].shape)
+            rows.append(np.arange(r0, r1, dtype=np.int64))
+        out[field] = arr
+        fresh[field] = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+    return out, fresh

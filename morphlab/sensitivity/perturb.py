@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..compile import System, compile_model, kernel_arrays, time_table
+from ..compile.incremental import fresh_rows
 from ..compile.system import SystemArrays, TimeTable
 from ..errors import MorphlabError, SensitivityError
 from ..kernels.system import DESIGN_FIELDS, DesignArrays
@@ -145,16 +146,18 @@ class PseudoLoadData(NamedTuple):
 
     ``S_nom``: the nominal kernel arrays in the perturbation's dtype; ``P``: the design data of
     the n_x perturbed designs; ``parts``: the parts of the model each variable changes (CSR
-    over the variables, :func:`pack_parts`); ``TAB`` / ``tab0``: the time tables of every
-    design (leading axes (n_t, n_x)) and the nominal one; ``pert`` (n_x,): ``i h`` or the
-    steps; ``dq0``, ``dv0`` (n_dof, n_x): the initial sensitivities.
+    over the variables, :func:`pack_parts`); ``TAB``: the distinct time tables of the designs
+    (leading axes (n_t, n_tab)), table 0 the nominal one, and ``tab_of`` (n_x,) int64 the table
+    of each variable (0 for most: a thickness or a link point changes no profile or constant);
+    ``pert`` (n_x,): ``i h`` or the steps; ``dq0``, ``dv0`` (n_dof, n_x): the initial
+    sensitivities.
     """
 
     S_nom: SystemArrays
     P: DesignArrays
     parts: tuple
     TAB: TimeTable
-    tab0: TimeTable
+    tab_of: np.ndarray
     pert: np.ndarray
     dtype: np.dtype
     dq0: np.ndarray
@@ -171,10 +174,9 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     S_all = [kernel_arrays(s, dt) for s in psys]
     P = DesignArrays(*(np.ascontiguousarray(np.stack([getattr(Sk, k) for Sk in S_all]))
                        for k in DESIGN_FIELDS))
-    shared: dict = {}
-    tab0 = time_table(sys0, times, dt, cache=shared)
-    tables = [time_table(s, times, dt, cache=shared) for s in psys]
-    each = [variable_parts(sys0, S_nom, Sk, tab0, tb) for Sk, tb in zip(S_all, tables)]
+    tab_of, tables = distinct_tables(sys0, psys, times, dt)
+    each = [variable_parts(sys0, S_nom, Sk, tables[0], tables[t] if t else None,
+                           fresh_rows(s)) for Sk, t, s in zip(S_all, tab_of, psys)]
     parts = pack_parts(each)
     rows = [touched_rows(sys0, p) for p in each]
     off = np.zeros(len(rows) + 1, dtype=np.int64)
@@ -188,7 +190,40 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     else:
         dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
         dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
-    return PseudoLoadData(S_nom, P, parts, TAB, tab0, pert, dt, dq0, dv0, touched)
+    return PseudoLoadData(S_nom, P, parts, TAB, tab_of, pert, dt, dq0, dv0, touched)
+
+
+def _same_time_data(a: System, b: System) -> bool:
+    """Do ``a`` and ``b`` have the same time-dependent data: equal constants (drive offsets,
+    force and torque magnitudes) and equal profiles on the same rows?"""
+    if not (np.array_equal(a.con_c0, b.con_c0) and np.array_equal(a.load_F0, b.load_F0)
+            and np.array_equal(a.torque_T0, b.torque_T0)):
+        return False
+    if len(a.con_drive) != len(b.con_drive) or any(
+            x[0] != y[0] for x, y in zip(a.con_drive, b.con_drive)):
+        return False
+    profiles = list(zip(a.load_prof + a.torque_prof, b.load_prof + b.torque_prof))
+    profiles += [(x[1], y[1]) for x, y in zip(a.con_drive, b.con_drive)]
+    return all(x is y or _equal(x, y) for x, y in profiles)
+
+
+def distinct_tables(sys0: System, psys: list[System], times: np.ndarray, dt
+                    ) -> tuple[np.ndarray, list[TimeTable]]:
+    """The time tables of the designs without repeats: ``(tab_of (n_x,) int64, tables)``,
+    ``tables[0]`` the nominal one and ``tables[tab_of[i]]`` design ``i``'s. A design with the
+    nominal's constants and profiles shares table 0 without evaluating its own; one whose
+    table comes out equal to the nominal's (a profile equal in value only) shares it too."""
+    shared: dict = {}
+    tables = [time_table(sys0, times, dt, cache=shared)]
+    tab_of = np.zeros(len(psys), dtype=np.int64)
+    for i, s in enumerate(psys):
+        if _same_time_data(s, sys0):
+            continue
+        tb = time_table(s, times, dt, cache=shared)
+        if not all(np.array_equal(x, y) for x, y in zip(tb, tables[0])):
+            tab_of[i] = len(tables)
+            tables.append(tb)
+    return tab_of, tables
 
 
 def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
@@ -201,16 +236,23 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
 
 
 def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeTable,
-                   tabi: TimeTable) -> tuple:
+                   tabi: TimeTable | None, fresh: dict | None = None) -> tuple:
     """The bodies, elements, flexible coordinates, constraint rows, loads, torques and
     spring-dampers whose data differ between the nominal arrays ``S0`` / time table ``tab0``
-    and a perturbed design's ``Si`` / ``tabi``: the parts its explicit pseudo-load must
-    evaluate. A changed element brings its body and its coordinates; a changed element entry
-    of a line load brings its load."""
+    and a perturbed design's ``Si`` / ``tabi`` (None: the nominal table): the parts its
+    explicit pseudo-load must evaluate. A changed element brings its body and its coordinates;
+    a changed element entry of a line load brings its load. ``fresh``: the rows of each array
+    the design's compile formed afresh (``incremental.fresh_rows``; the others are the
+    nominal's), compared alone; None: every row is compared."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
 
     def changed(name):
-        return _changed(getattr(Si, name), getattr(S0, name))
+        rows = fresh.get(name) if fresh is not None else None
+        if rows is None:
+            return _changed(getattr(Si, name), getattr(S0, name))
+        out = np.zeros(len(getattr(S0, name)), dtype=bool)
+        out[rows] = _changed(getattr(Si, name)[rows], getattr(S0, name)[rows])
+        return out
 
     damp = changed("body_damp")
     elem = (changed("elem_M") | changed("elem_St") | changed("elem_K")
@@ -222,21 +264,21 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
     if np.any(Si.gravity != S0.gravity):  # gravity acts on every body and every coordinate
         body[:] = True
         flex[:] = True
-    for b in range(n_body):
-        lo, hi = sys0.flex_off[b], sys0.flex_off[b + 1]
-        body[b] |= bool(flex[lo:hi].any())
-        if damp[b]:
-            flex[lo:hi] = True
+    owner = np.repeat(np.arange(n_body), np.diff(sys0.flex_off))  # body of each coordinate
+    body |= np.bincount(owner[flex], minlength=n_body) > 0
+    flex |= damp[owner]
     body[sys0.elem_body[elem]] = True
-    # time tables (n_t, ...): a row changes if it changes at any time
-    rows = (changed("con_u0") | _changed(tabi.C, tab0.C, 1) | _changed(tabi.CD, tab0.CD, 1)
-            | _changed(tabi.CDD, tab0.CDD, 1))
-    loads = changed("load_u0") | _changed(tabi.F, tab0.F, 1)
+    rows, loads = changed("con_u0"), changed("load_u0")
+    torques = np.zeros(tab0.T.shape[1], dtype=bool)
+    if tabi is not None:  # time tables (n_t, ...): a row changes if it changes at any time
+        rows |= (_changed(tabi.C, tab0.C, 1) | _changed(tabi.CD, tab0.CD, 1)
+                 | _changed(tabi.CDD, tab0.CDD, 1))
+        loads |= _changed(tabi.F, tab0.F, 1)
+        torques |= _changed(tabi.T, tab0.T, 1)
     line = changed("line_u0") | changed("line_N")
     if line.any():
         owner = np.repeat(np.arange(loads.size), np.diff(sys0.line_off))
         loads[owner[line]] = True
-    torques = _changed(tabi.T, tab0.T, 1)
     springs = changed("spring_u0") | changed("spring_par")
     return tuple(np.flatnonzero(m).astype(np.int64)
                  for m in (body, elem, flex, rows, loads, torques, springs))
