@@ -19,6 +19,7 @@ from ..model.profiles import Ramp
 from ..solve.statics import static
 from .leading_edge import (
     C_NODE,
+    CRANK_SENSE,
     DEFAULTS,
     DROOP_MM,
     E_AL,
@@ -181,10 +182,10 @@ def inverse_mechanism(fit: dict, x_A: float, delta: float, M_t: float = DEFAULTS
     x_A : float
         x of the pivot A [mm]; y_A follows from the crank's moment balance.
     delta : float
-        Crank rotation from the undeformed to the morphed state [rad] (counter-clockwise,
-        the sense of a positive torque).
+        Crank rotation from the undeformed to the morphed state [rad], counter-clockwise
+        positive (a clockwise crank: negative ``delta`` and ``M_t``).
     M_t : float
-        Torque [N·mm].
+        Torque on the crank [N·mm], counter-clockwise positive.
 
     Returns
     -------
@@ -226,18 +227,20 @@ def inverse_mechanism(fit: dict, x_A: float, delta: float, M_t: float = DEFAULTS
 
 
 def torque_angle_curve(p: dict | None = None, delta_max: float = 0.8, steps: int = 32, *,
-                       nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "accurate"):
+                       nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "accurate",
+                       sense: int = CRANK_SENSE):
     """Static torque needed to hold the crank at each angle up to ``delta_max`` [rad].
 
     Returns ``(delta (steps + 1,), M (steps + 1,) [N·mm], result)``; the crank angle is
     prescribed by a drive and ``M`` is minus its multiplier. The mechanism follows a growing
     torque without snapping only where ``M`` rises. ``nodes``: C and E (30-element mesh);
-    ``skin``: the skin's frames (:data:`SKINS`).
+    ``skin``: the skin's frames (:data:`SKINS`); ``sense``: the crank turns by ``sense``
+    times the angle and ``M`` is the torque in that sense.
     """
-    r = static(_assemble(p, N_ELEMENTS, drive=True, nodes=nodes, skin=skin), t=delta_max,
-               steps=steps)
+    r = static(_assemble(p, N_ELEMENTS, drive=True, nodes=nodes, skin=skin, sense=sense),
+               t=delta_max, steps=steps)
     i = r.system.con_names.index("drive.r")
-    return r.t, -np.real(r.lam[:, i]), r
+    return r.t, -sense * np.real(r.lam[:, i]), r
 
 
 def _path_exponents(delta, M, res, M_t: float) -> dict:
@@ -260,6 +263,7 @@ def _path_exponents(delta, M, res, M_t: float) -> dict:
 
 def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 103.0, 104.0),
                   deltas=(0.6, 0.65, 0.7), *, skin: str = "accurate", overshoot: float = 0.0,
+                  sense: int = CRANK_SENSE,
                   min_joint_clearance: float = 5.0, min_arm: float = 8.0,
                   min_link: float = 20.0, min_slope: float = 0.4, select="overload",
                   verbose: bool = False) -> dict:
@@ -276,6 +280,8 @@ def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 10
     skin : {"paper", "accurate"}
         The skin the forces are fitted on and the torque path is checked on: the linear
         design on the paper's single frame, or the nonlinear one on the accurate skin.
+    sense : {1, -1}
+        The crank turns counter-clockwise (1) or clockwise (-1) under the torque.
     overshoot : float
         The nominal torque ``M_t`` exceeds the torque that holds the fitted shape by this
         fraction: the crank is designed for ``M_t / (1 + overshoot)``, so at ``M_t`` it has
@@ -308,8 +314,8 @@ def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 10
         fit = fit_link_forces(c, e, skin=skin)
         for x_A in x_A_values:
             for delta in deltas:
-                cand = _candidate(fit, x_A, delta, M_design, skin, n_path, min_link, min_arm,
-                                  min_slope, min_joint_clearance)
+                cand = _candidate(fit, x_A, delta, M_design, skin, sense, n_path, min_link,
+                                  min_arm, min_slope, min_joint_clearance)
                 if cand is None:
                     continue
                 accepted.append(cand)
@@ -321,10 +327,10 @@ def design_report(pairs=((C_NODE, E_NODE),), x_A_values=(100.0, 101.0, 102.0, 10
     return {"best": best, "candidates": accepted}
 
 
-def _candidate(fit, x_A, delta, M_design, skin, n_path, min_link, min_arm, min_slope,
+def _candidate(fit, x_A, delta, M_design, skin, sense, n_path, min_link, min_arm, min_slope,
                min_joint_clearance):
     c, e = fit["c_node"], fit["e_node"]
-    mech = inverse_mechanism(fit, x_A, delta, M_design)
+    mech = inverse_mechanism(fit, x_A, sense * delta, sense * M_design)
     A, B, D = mech["A"], mech["B"], mech["D"]
     arm_B = float(np.sqrt(np.sum((B - A) ** 2)))
     arm_D = float(np.sqrt(np.sum((D - A) ** 2)))
@@ -334,7 +340,8 @@ def _candidate(fit, x_A, delta, M_design, skin, n_path, min_link, min_arm, min_s
          "x_B": round(float(B[0]), 2), "y_B": round(float(B[1]), 2),
          "x_D": round(float(D[0]), 2), "y_D": round(float(D[1]), 2)}
     try:
-        delta_k, M, res = torque_angle_curve(p, 1.3 * delta, n_path, nodes=(c, e), skin=skin)
+        delta_k, M, res = torque_angle_curve(p, 1.3 * delta, n_path, nodes=(c, e), skin=skin,
+                                             sense=sense)
     except SolverError:  # no static path: rejected
         return None
     slope = np.diff(M[:31]) / np.diff(delta_k[:31]) / (M_design / delta)
@@ -343,7 +350,8 @@ def _candidate(fit, x_A, delta, M_design, skin, n_path, min_link, min_arm, min_s
     clear = mechanism_clearance(res, p, nodes=(c, e))
     if clear["joints"] < min_joint_clearance or clear["crossings"] or clear["links"] <= 0.0:
         return None
-    return {"c_node": c, "e_node": e, "x_A": float(x_A), "delta": float(delta), "p": p,
+    return {"c_node": c, "e_node": e, "x_A": float(x_A), "delta": float(delta),
+            "sense": sense, "p": p,
             "fit_rms": fit["rms"], "fit_max": fit["max"], "fit_stress": fit["max_stress"],
             "L_C": mech["L_C"], "L_E": mech["L_E"], "arm_B": arm_B, "arm_D": arm_D,
             "min_slope": float(slope.min()), "torque_at_delta": float(M[30]),

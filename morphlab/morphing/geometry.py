@@ -18,7 +18,8 @@ from . import airfoil
 
 __all__ = [
     "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
-    "LINK_SECTION_MM2", "DESIGN_DELTA", "DEFAULTS", "GEOMETRY", "undeformed", "target",
+    "LINK_SECTION_MM2", "DESIGN_DELTA", "CRANK_SENSE", "DEFAULTS", "GEOMETRY", "undeformed",
+    "target",
     "mechanism_clearance",
 ]
 
@@ -42,6 +43,9 @@ E_NODE = 22
 LINK_SECTION_MM2 = 100.0
 #: Crank rotation of the design from the undeformed to the morphed state [rad].
 DESIGN_DELTA = 0.7
+#: Sense in which the torque turns the crank: +1 counter-clockwise, -1 clockwise (the torque
+#: ``M_t`` is a magnitude; the model applies ``CRANK_SENSE * M_t``).
+CRANK_SENSE = 1
 
 #: Design variables of the paper's sensitivity study (Table 1): skin wall thickness [mm],
 #: actuation torque [N·mm], pivot A [mm], Young's modulus of the skin [MPa].

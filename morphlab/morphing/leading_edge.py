@@ -95,6 +95,7 @@ from ..results import responses
 from ..results.responses import distance
 from .geometry import (  # the geometry's names, re-exported; the private ones for design.py
     C_NODE,
+    CRANK_SENSE,
     DEFAULTS,
     DESIGN_DELTA,
     DROOP_MM,
@@ -120,7 +121,8 @@ from .geometry import (  # the geometry's names, re-exported; the private ones f
 
 __all__ = [
     "SKINS", "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
-    "LINK_SECTION_MM2", "DESIGN_DELTA", "DAMPING_S", "T_RAMP_S", "RHO_KS", "STATIC_STEPS",
+    "LINK_SECTION_MM2", "DESIGN_DELTA", "CRANK_SENSE", "DAMPING_S", "T_RAMP_S", "RHO_KS",
+    "STATIC_STEPS",
     "DEFAULTS", "GEOMETRY", "SETTINGS", "build", "undeformed", "target", "shape_errors",
     "rms_error", "max_error", "ks_max_stress", "RESPONSES", "mechanism_clearance",
     "study", "PAPER", "UNITS",
@@ -173,7 +175,8 @@ def _skin_frames(skin: str) -> dict:
 
 
 def _assemble(p: dict | None, n_elements: int, drive: bool,
-              nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "paper") -> Model:
+              nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "paper",
+              sense: int = CRANK_SENSE) -> Model:
     q = _design(p)
     n = _check_elements(n_elements)
     X = _nodes(n, DROOP_MM)[0]
@@ -197,12 +200,12 @@ def _assemble(p: dict | None, n_elements: int, drive: bool,
     m.add_revolute(arm, link_e, at=D, name="D")
     m.add_revolute(link_e, skin, at=E, name="E")
     if drive:
-        # crank angle = t (static use only: the derivatives are never evaluated there; zero
+        # crank angle = sense t (static use only: the derivatives are never evaluated there; zero
         # keeps the initial velocity check of compile satisfied)
-        m.add_drive(crank, angle=Custom(lambda t: t, lambda t: 0.0, lambda t: 0.0),
+        m.add_drive(crank, angle=Custom(lambda t: sense * t, lambda t: 0.0, lambda t: 0.0),
                     name="drive")
     else:
-        m.add_torque(crank, q["M_t"], profile=SmoothStep(0.0, T_RAMP_S), name="M_t")
+        m.add_torque(crank, sense * q["M_t"], profile=SmoothStep(0.0, T_RAMP_S), name="M_t")
     return m
 
 
