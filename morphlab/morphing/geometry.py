@@ -37,12 +37,12 @@ N_ELEMENTS = 30
 DROOP_MM = airfoil.DEFAULT_DROOP_MM
 #: Skin node (of the 30-element mesh) where link_C acts: upper surface, x = 99.2 mm.
 C_NODE = 4
-#: Skin node (of the 30-element mesh) where link_E acts: lower surface, x = 60.0 mm.
-E_NODE = 22
+#: Skin node (of the 30-element mesh) where link_E acts: lower surface, x = 79.3 mm.
+E_NODE = 24
 #: Cross-section of the rigid links, a 10 mm x 10 mm aluminium bar [mm²].
 LINK_SECTION_MM2 = 100.0
 #: Crank rotation of the design from the undeformed to the morphed state [rad].
-DESIGN_DELTA = 0.7
+DESIGN_DELTA = 0.575
 #: Sense in which the torque turns the crank: +1 counter-clockwise, -1 clockwise (the torque
 #: ``M_t`` is a magnitude; the model applies ``CRANK_SENSE * M_t``).
 CRANK_SENSE = 1
@@ -52,17 +52,17 @@ CRANK_SENSE = 1
 DEFAULTS: dict[str, float] = {
     "t_w": 2.0,
     "M_t": 1.0e4,
-    "x_A": 102.0,
-    "y_A": -0.25,
+    "x_A": 104.5,
+    "y_A": -4.0,
     "E": E_AL,
 }
 #: Further geometry that ``build`` accepts in ``p`` (not in the paper's study): the bell-crank
 #: points B and D [mm].
 GEOMETRY: dict[str, float] = {
-    "x_B": 99.29,
-    "y_B": -8.25,
-    "x_D": 108.85,
-    "y_D": -5.88,
+    "x_B": 102.59,
+    "y_B": -12.72,
+    "x_D": 132.02,
+    "y_D": -8.87,
 }
 
 
