@@ -282,19 +282,22 @@ WHY_DIFFERENT = """\
 Why our numbers differ from the paper's: the paper's mechanism geometry, link points and
 target profile are not published (its figure 5a is not available), so this model is a
 reconstruction: our own CST airfoil and drooped target, and a bell crank designed backwards
-from that target on the paper's single-frame skin (morphlab.morphing.design). On the
-accurate skin (one chord frame per element) the mechanism reaches the target more closely
-than the paper's (RMS 0.067 vs 0.63 mm) with lower stress (79 vs 150 MPa). The single frame
-the paper used stretches the skin spuriously by ~0.5 mm and moves its nodes by up to
-0.28 mm, as large as the shape error itself, and flips the signs of de_rms/dt_w, /dM_t and
-/dE (table above). Table 1 signs as the paper's: 6 of 10 on the accurate skin. Both obey
-E dsigma/dE + M_t dsigma/dM_t = sigma (stress = E f(M_t/E) for a torque-loaded elastic
-skin); the paper's stress grows faster than its torque (M_t dsigma/dM_t = 266 > 150 MPa), so
-its dsigma/dE < 0, ours slower (40 < 79 MPa), so ours > 0. Our short crank arms (~8.5 mm) make
-stress and shape far more sensitive to where the pivot A sits (dKS/dx_A = +22 vs
--0.78 MPa/mm), with other signs for x_A and y_A. Timing: the paper's code took 148 s per
-primal run; ours takes a fraction of a second, so fixed per-run costs (model compilation,
-response evaluation) weigh more in our ratios."""
+from that target on the accurate skin (nonlinear fit of the link forces on its statics,
+morphlab.morphing.design). It reaches the target more closely than the paper's (RMS 0.020 vs
+0.63 mm) with lower stress (78 vs 150 MPa). Table 1 signs as the paper's: 6 of 10. Both obey
+E dsigma/dE + M_t dsigma/dM_t = sigma and E de/dE + M_t de/dM_t = 0 (the state depends on
+M_t/E only). Like the paper's, our stress grows faster than the torque (M_t dsigma/dM_t =
+108 > 78 MPa, so dsigma/dE < 0) and more torque overshoots the target (de_rms/dM_t > 0); at
+an exact inverse design de_rms/dM_t vanishes (the fit is stationary in the forces), so that
+sign comes from the design's rounding to 0.01 mm and is small. The x_A and y_A signs differ:
+with B and D fixed, moving A changes the moment arm of the net link force (about 2.5 kN,
+pointing aft and up) about the pivot, and with a counter-clockwise crank that raises the
+forces for +x_A and lowers them for +y_A; the paper's signs would need a net force pointing
+forward or a clockwise crank (none passed the design checks here). Our short crank arm
+(|AB| = 8.9 mm) makes both far larger than the paper's. The paper's single-frame skin, with
+this mechanism, errs by 0.30 mm against the accurate skin. Timing: the paper's code took
+148 s per primal run; ours takes a fraction of a second, so fixed per-run costs (model
+compilation, response evaluation) weigh more in our ratios."""
 
 
 def study(out=None, overrides: dict | None = None, *, quick: bool = False, figures: bool = True,
