@@ -14,6 +14,7 @@ import pytest
 
 import morphlab as ml
 from morphlab import morphing as mo
+from morphlab.errors import KinematicAccuracyWarning
 from morphlab.morphing import design as md
 
 
@@ -24,7 +25,9 @@ def run():
 
 @pytest.fixture(scope="module")
 def paper_run():
-    return ml.simulate(mo.build(mo.DEFAULTS, skin="paper"), **mo.SETTINGS)
+    # the single frame is flagged by design: the warning is part of what is tested
+    with pytest.warns(KinematicAccuracyWarning, match="'skin'"):
+        return ml.simulate(mo.build(mo.DEFAULTS, skin="paper"), **mo.SETTINGS)
 
 
 @pytest.fixture(scope="module")
@@ -78,18 +81,19 @@ def test_link_mass_and_inertia_follow_the_geometry_and_pivot_A():
 
 def test_the_paper_skin_is_flagged_and_the_accurate_one_is_not(run, paper_run):
     # the paper's single linear frame on the skin: the kinematic check flags it, and only it
-    # (docs/frames.md: its nodes err by ~0.3 mm; the estimate is within a factor 3 of that)
     assert paper_run.status == "warning"
     assert [(f.check, f.where) for f in paper_run.findings] == [("kinematic accuracy",
                                                                  "'skin'")]
-    assert 0.28 < paper_run.kinematics["skin"].estimate < 5 * 0.28
     # one chord frame per element (the study's skin): below kinematic_tol, no finding
     assert run.status == "ok" and run.findings == []
     assert run.kinematics["skin"].relative < 1e-4
-    # the paper skin's nodes against the accurate ones: the single frame's error (0.28 mm)
+    # the paper skin's nodes against the accurate ones: the single frame's error, a few
+    # tenths of a millimetre (docs/frames.md)
     d = np.linalg.norm(paper_run.node_positions("skin", -1) - run.node_positions("skin", -1),
                        axis=1)
     assert 0.2 < d.max() < 0.35
+    # the estimate is an upper bound of that error, within a factor 5 (docs/frames.md)
+    assert d.max() < paper_run.kinematics["skin"].estimate < 5 * d.max()
 
 
 def test_run_is_cheap_and_converges(run):
@@ -102,7 +106,7 @@ def test_run_is_cheap_and_converges(run):
 def test_final_state_is_the_static_equilibrium(run, equilibrium):
     dyn = run.node_positions("skin")[-1]
     sta = equilibrium.node_positions("skin")[-1]
-    # settled: the nodes agree to 1 % of the RMS shape error (~0.1 mm)
+    # settled: the nodes agree to 1 % of the RMS shape error (~0.02 mm)
     assert np.max(np.hypot(*(dyn - sta).T)) < 0.01 * mo.rms_error(equilibrium)
     # the stresses of the end state agree likewise (1 % of the largest)
     s_dyn, s_sta = run.stress("skin")[-1], equilibrium.stress("skin")[-1]
@@ -214,7 +218,8 @@ def test_linear_design_on_the_paper_skin_lands_on_its_prediction():
     p = {"x_A": mech["A"][0], "y_A": mech["A"][1], "x_B": mech["B"][0], "y_B": mech["B"][1],
          "x_D": mech["D"][0], "y_D": mech["D"][1]}
     m = mo._assemble(p, mo.N_ELEMENTS, drive=False, nodes=nodes, skin="paper", sense=1)
-    r = ml.static(m, t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS)
+    # the single frame is the formulation under test here: its kinematic check is off
+    r = ml.static(m, t=mo.SETTINGS["t_end"], steps=mo.STATIC_STEPS, kinematic_tol=None)
     # both sides come from Newton solves to 1e-10 of the model size (~160 mm), i.e. ~2e-8 mm;
     # 1e-7 mm leaves room for the sum of 4 unit-load solutions in the fit
     np.testing.assert_allclose(r.node_positions("skin")[-1], fit["nodes"], atol=1e-7)
