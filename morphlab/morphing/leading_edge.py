@@ -310,8 +310,9 @@ E dsigma/dE + M_t dsigma/dM_t = sigma and E de/dE + M_t de/dM_t = 0 (the state d
 M_t/E only). Like the paper's, our stress grows faster than the torque (M_t dsigma/dM_t =
 108 > 78 MPa, so dsigma/dE < 0) and more torque overshoots the target (de_rms/dM_t > 0); at
 an exact inverse design de_rms/dM_t vanishes (the fit is stationary in the forces), so that
-sign comes from the design's rounding to 0.01 mm and is small. The x_A and y_A signs differ:
-with B and D fixed, moving A changes the moment arm of the net link force (about 2.5 kN,
+sign comes from the design's rounding to 0.01 mm (its size from how sharp the minimum of
+e_rms in M_t is), not from the design. The x_A and y_A signs differ:
+with B and D fixed, moving A changes the moment arm of the net link force (about 2.8 kN,
 pointing aft and up) about the pivot, and with a counter-clockwise crank that raises the
 forces for +x_A and lowers them for +y_A; the paper's signs would need a net force pointing
 forward or a clockwise crank (none passed the design checks here). Our short crank arm
