@@ -48,9 +48,9 @@ accurate one, one chord frame per element), whose statics are geometrically nonl
    :func:`~morphlab.morphing.design.design_report` accepts a candidate whose path rises with
    at least 40 % of its mean slope up to the design angle and keeps rising to 1.3 times it,
    with the pivots A, B, D at least 5 mm inside the skin at all times, no link crossing the
-   skin, crank arms >= 8 mm and links >= 20 mm. No clockwise crank (``CRANK_SENSE = -1``) of
-   this pair passed. At ``x_A`` = 104.5 mm, of ``delta`` = 0.55, 0.575, 0.6 and 0.625 rad the
-   checks accept 0.575 and 0.6:
+   skin, crank arms >= 8 mm and links >= 20 mm. A scan of clockwise cranks (``sense=-1``)
+   for this pair found none that passes. At ``x_A`` = 104.5 mm, of ``delta`` = 0.55, 0.575,
+   0.6 and 0.625 rad the checks accept 0.575 and 0.6:
 
    ======  ========  ===============  =========  ===============  ==========  ==========
    delta   overload  stress exponent  min slope  joint clearance  arms AB, AD  links C, E
