@@ -132,10 +132,15 @@ def test_compiled_loop_gives_the_run_of_the_python_loop(monkeypatch):
     compiled loop and with every iteration from Python the run is the same bit for bit, with
     as many iterations and factorizations. SuperLU renews the row order during this run (a
     pivot fails the threshold inside the compiled loop, which hands the iteration back to
-    Python): 4 orders, the same in both (the default 30-element skin keeps its first)."""
+    Python), the same in both. The mechanism is the study's former design (E = node 22,
+    x_A = 102 mm), kept here because its run exercises those renewals; the current design's
+    run keeps its first order."""
     from morphlab import morphing as mo
 
-    system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=60))
+    former = {"x_A": 102.0, "y_A": -0.25, "x_B": 99.29, "y_B": -8.25, "x_D": 108.85,
+              "y_D": -5.88}
+    system = ml.compile_model(mo._assemble(former, 60, drive=False, nodes=(4, 22),
+                                           skin="accurate", sense=1))
     (fast, slow), orders = _runs(monkeypatch, system, **mo.SETTINGS)
     assert orders[0] == orders[1] >= 2  # the order of the second matrix, then renewals
     for name in ("q", "v", "a", "lam", "newton_iterations"):

@@ -2,8 +2,10 @@
 
 ``ml.morphing`` is :mod:`morphlab.morphing.leading_edge` (the parametric model, its settings and
 responses, and :func:`study`); :mod:`.airfoil` holds the CST geometry and the target shapes,
-:mod:`.design` how the mechanism was designed, :mod:`.paper` the model-agnostic study that
-writes the tables, figures and JSON. Nothing in the core library imports this package.
+:mod:`.geometry` the skin's nodes, the design variables and the mechanism's clearance
+(re-exported by :mod:`.leading_edge`), :mod:`.design` how the mechanism was designed,
+:mod:`.paper` the model-agnostic study that writes the tables, figures and JSON. Nothing in
+the core library imports this package.
 """
 
 from . import airfoil

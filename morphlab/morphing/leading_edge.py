@@ -22,71 +22,90 @@ C (link_C–skin), revolute D (arm–link_E), revolute E (link_E–skin). Moving
 
 Mechanism (how the numbers were found; the tools are in :mod:`morphlab.morphing.design`)
 ---------------------------------------------------------------------------------------
-The mechanism was designed on the paper's formulation of the skin (``skin="paper"``: one
-linear floating frame held by the clamp at F), in which the skin is a *linear* elastic
-structure: its morphed shape is ``X + G f`` for the two link forces ``f`` at C and E (G: the
-skin's compliance, :func:`skin_compliance`). The design therefore runs backwards from the shape:
+The mechanism is designed backwards from the target shape, on the skin the study uses (the
+accurate one, one chord frame per element), whose statics are geometrically nonlinear:
 
-1. :func:`fit_link_forces`: for each pair of skin nodes (C upper, E lower) the two force
-   vectors that best reproduce the target displacements (linear least squares, with a tiny
-   ridge term against the useless axial-stretching solutions). Every pair C = 3..7,
-   E = 22..24 reaches an RMS error of about 0.10 mm and ~82 MPa; one force alone (at node 19)
-   would give 0.13 mm.
-2. :func:`inverse_mechanism`: the links are two-force members, so in the morphed state each
-   lies along its force. The crank is in equilibrium when the moment of the two skin forces
-   about A equals ``M_t``, which puts A on a line; for a chosen ``x_A`` on that line and a
-   crank rotation ``delta``, B and D follow from rotating the morphed crank back by ``delta``
-   under the condition that each link keeps its length (one linear equation per link). The
-   simulated equilibrium at ``M_t`` is then exactly the fitted shape.
-3. Not every such mechanism reaches that state under a growing torque: the torque–angle path
-   (:func:`torque_angle_curve`, static with the crank angle prescribed) must rise
-   monotonically, or the crank snaps through. A scan (pairs C = 3..7, E = 21..24; x_A = 80 ...
-   125 mm in 1 mm steps; ``delta`` = 0.4 ... 1.2 rad in steps of 0.05) kept the designs
-   whose path rises with at least 40 % of its mean slope up to the design angle and keeps
-   rising to 1.3 times it, with the pivots A, B, D at least 5 mm inside the skin at all
-   times, no link crossing the skin, crank arms >= 8 mm and links >= 20 mm (10 of them), and
-   took the one that needs the largest torque to turn 30 % beyond its design angle (1.83
-   ``M_t``: the shape moves least under an overload). That is C = node 4, E = node 22,
-   x_A = 102 mm, delta = 0.7 rad; the coordinates below are its output rounded to 0.01 mm,
-   which moves the morphed nodes by up to 0.003 mm (the crank ends at 0.698 rad).
+1. :func:`~morphlab.morphing.design.fit_link_forces`: for a pair of skin nodes (C upper, E
+   lower) the two force vectors whose static equilibrium of the skin alone (F clamped, G
+   sliding) best reproduces the target nodes (least squares, with a tiny ridge term against
+   forces that only stretch the skin). Gauss–Newton on the skin's nonlinear statics, started
+   from the linear fit of the single-frame skin and with the exact Jacobian of complex-step
+   statics. Over C = 3..7, E = 21..24 the fit is best with E at node 24 (RMS 0.020 to 0.032
+   mm, against 0.05 to 0.06 mm at node 21); C = node 4, E = node 24 gives RMS 0.0199 mm, max
+   0.0398 mm, 77.7 MPa, with 1.27 kN at C and 2.12 kN at E. The linear fit of the same pair on
+   the single-frame skin predicts 0.099 mm: on that skin the error of the single frame (a few
+   tenths of a millimetre, below), not what two forces can do, limits the fit.
+2. :func:`~morphlab.morphing.design.inverse_mechanism`: the links are two-force members, so
+   in the fitted state each lies along its force. The crank is in equilibrium when the moment
+   of the two skin forces about A equals the torque (``CRANK_SENSE * M_t``), which puts A on a
+   line; for a chosen ``x_A`` on that line and a crank rotation ``delta``, B and D follow from
+   rotating the morphed crank back by ``delta`` under the condition that each link keeps its
+   length (one linear equation per link). The multibody equilibrium at ``M_t`` is then the
+   fitted shape: the skin carries the same two forces as in the fit.
+3. Not every such mechanism reaches that state under a growing torque: its torque–angle path
+   (:func:`~morphlab.morphing.design.torque_angle_curve`, static with the crank angle
+   prescribed) must rise, or the crank snaps through.
+   :func:`~morphlab.morphing.design.design_report` accepts a candidate whose path rises with
+   at least 40 % of its mean slope up to the design angle and keeps rising to 1.3 times it,
+   with the pivots A, B, D at least 5 mm inside the skin at all times, no link crossing the
+   skin, crank arms >= 8 mm and links >= 20 mm. A scan of clockwise cranks (``sense=-1``)
+   for this pair found none that passes. At ``x_A`` = 104.5 mm, of ``delta`` = 0.55, 0.575,
+   0.6 and 0.625 rad the checks accept 0.575 and 0.6:
 
-The torque is small for the forces the skin needs (1.12 kN at C, 2.23 kN at E): the crank arms
-are short (|AB| = 8.4 mm, |AD| = 8.9 mm; links 44.8 and 50.6 mm) and the crank turns by
-0.7 rad. That follows from the work balance: the torque's work ``integral M d(delta) <=
-M_t delta`` equals the strain energy (3.8 J), so ``delta >= 0.38 rad`` and the crank radius is
-about the skin's displacement at the links (~4 mm) over ``delta``.
+   ======  ========  ===============  =========  ===============  ==========  ==========
+   delta   overload  stress exponent  min slope  joint clearance  arms AB, AD  links C, E
+   ======  ========  ===============  =========  ===============  ==========  ==========
+   0.575   1.20      1.40             0.55       5.5 mm           8.9, 27.9   49.3, 53.8
+   0.600   1.31      1.02             0.62       7.9 mm           8.4, 21.1   48.8, 46.9
+   ======  ========  ===============  =========  ===============  ==========  ==========
+
+   (overload: the torque, in units of ``M_t``, that turns the crank 30 % beyond its design
+   angle; stress exponent: d ln(sigma_max) / d ln(M) along the path at ``M_t``; min slope:
+   the path's weakest slope over its mean; lengths in mm.) Selected for the largest overload
+   (``select="overload"``) the design would be 0.6 rad. The study takes 0.575 rad
+   (``select="stress_exponent"``, the default of ``design_report``):
+   its stress grows clearly faster than the torque, as in the paper (M_t dsigma/dM_t = 266 >
+   150 MPa there), so that by ``E dsigma/dE + M_t dsigma/dM_t = sigma`` (the state depends on
+   M_t/E only) the stress falls with E as in the paper's Table 1; at 0.6 rad the exponent is
+   1.02, and the sign of dsigma/dE would rest on 2 %. The price is margin: 1.20 instead of
+   1.31 ``M_t`` turns the crank 30 % past its design angle (the shape moves more under an
+   overload), the path's weakest slope is lower and the joints clear the skin by 5.5 instead
+   of 7.9 mm. The coordinates are the candidate's output rounded to 0.01 mm.
+
+Rounding and the shape error's torque derivative: at an exact inverse design the fitted shape
+is the equilibrium at ``M_t`` and minimises the shape error over all link forces, so the shape
+error is stationary along the states the torque reaches: d(e_rms)/dM_t = 0 there. Rounding
+moves the morphed nodes by a few micrometres and the crank's end angle to 0.576 rad; the
+smallest e_rms then lies about 0.1 % below ``M_t``, and at ``M_t`` the skin has moved a little
+past it. The minimum is sharp (e_rms = 0.0201 mm at ``M_t``, 0.0220 / 0.0212 mm at 0.996 /
+1.002 ``M_t``, 0.032 / 0.034 mm at -/+ 1 %), so this small offset gives Table 1's
+M_t de_rms/dM_t = +0.22 mm: its sign (the paper's) is a property of the rounding, not of the
+design, and its size of how narrow the minimum is.
 
 Numbers (defaults, :data:`SETTINGS`)
 ------------------------------------
 * target droop 6 mm (:data:`morphlab.morphing.airfoil.DEFAULT_DROOP_MM`, chosen as in
   ``docs/theory.md`` §9.4);
-* the accurate skin (the default, ``skin="accurate"``: one chord frame per element, kinematic
-  error estimate 0.0006 mm): KS max stress 78.75 MPa, RMS shape error 0.0670 mm, max
-  0.1128 mm; the skin keeps its length to 0.001 mm; paper: 149.96 MPa, 0.6348 mm, 1.185 mm.
-  Yield of 6061-T6: >= 240 MPa;
-* the paper's single-frame skin (``skin="paper"``): KS 83.24 MPa (exact max 82.77 MPa, at E,
-  at the end of the ramp and through the hold), RMS 0.1012 mm, max 0.2447 mm (at the nose,
-  node 15); G slides 4.65 mm aft (target: 4.59 mm); largest node rotation 0.101 rad relative to
-  the frame, so the skin polygon grows spuriously by 0.535 mm (~ phi²/2 of each element) and
-  its nodes lie up to 0.28 mm (0.12 mm RMS) from the accurate skin's: the linearization error
-  of the single frame is of the size of the shape error (``docs/theory.md`` §2.10,
-  ``docs/frames.md``). The remaining items were measured on this skin:
-* final state vs :func:`morphlab.static` at ``t_end``: nodes agree to 2e-12 mm, stresses to
-  2e-10 MPa; energy balance (torque work = strain energy + damping loss) closes to 7e-5 of the
-  work;
-* halving ``dt``: e_rms and e_max change by < 1e-11 relative, KS by +8.3e-4 (ln(2)/rho_KS from
-  twice as many values near the max in the hold);
-* mesh: 60 and 120 elements (C and E at the same material points) give KS 83.18 / 83.17 MPa
-  and RMS error 0.1018 / 0.1022 mm: the design, fitted on 30 elements, holds;
-* one :func:`morphlab.simulate` of the defaults: 300 steps, 1.8 Newton iterations per step
-  (run times: BENCHMARKS.md).
+* the accurate skin (the default, ``skin="accurate"``): KS max stress 78.33 MPa (exact max
+  77.87 MPa), RMS shape error 0.0201 mm, max 0.0400 mm (node 8); kinematic error estimate
+  0.0006 mm, the skin keeps its length to 0.001 mm, largest node rotation 0.098 rad; 300
+  steps at 1.8 Newton iterations per step (run times: BENCHMARKS.md); paper: 149.96 MPa,
+  0.6348 mm, 1.185 mm. Yield of 6061-T6: >= 240 MPa;
+* the paper's single-frame skin (``skin="paper"``) with the same mechanism: KS 80.15 MPa, RMS
+  0.134 mm, max 0.303 mm (at the nose, node 15); the crank stops at 0.558 rad instead of
+  0.576; largest node rotation 0.097 rad relative to the frame, so the skin polygon grows
+  spuriously by 0.513 mm (~ phi²/2 of each element) and its nodes lie up to 0.30 mm (0.14 mm
+  RMS) from the accurate skin's: the linearization error of the single frame is several
+  times the shape error (``docs/theory.md`` §2.10, ``docs/frames.md``);
+* ``tests/test_morphing_model.py`` checks the end state against :func:`morphlab.static` at
+  ``t_end``, the energy balance of the run, the responses under a halved ``dt``, a 60-element
+  skin (C and E at the same material points) and Table 1 against the complex step of the
+  whole run.
 
 Units: mm, t, s, N, N·mm, MPa.
 """
 
 from __future__ import annotations
-
-from functools import lru_cache
 
 import numpy as np
 
@@ -95,34 +114,42 @@ from ..model import Model
 from ..model.profiles import Custom, SmoothStep
 from ..results import responses
 from ..results.responses import distance
-from . import airfoil
+from .geometry import (  # the geometry's names, re-exported; the private ones for design.py
+    C_NODE,
+    CRANK_SENSE,
+    DEFAULTS,
+    DESIGN_DELTA,
+    DROOP_MM,
+    E_AL,
+    E_NODE,
+    GEOMETRY,
+    LINK_SECTION_MM2,
+    N_ELEMENTS,
+    RHO_AL,
+    SPAN_MM,
+    YIELD_MPA,
+    _attachment,
+    _check_elements,
+    _crosses,  # noqa: F401
+    _design,
+    _distance_to_polyline,  # noqa: F401
+    _inside,  # noqa: F401
+    _nodes,
+    mechanism_clearance,
+    target,
+    undeformed,
+)
 
 __all__ = [
     "SKINS", "SPAN_MM", "RHO_AL", "E_AL", "YIELD_MPA", "N_ELEMENTS", "DROOP_MM", "C_NODE", "E_NODE",
-    "LINK_SECTION_MM2", "DESIGN_DELTA", "DAMPING_S", "T_RAMP_S", "RHO_KS", "STATIC_STEPS",
+    "LINK_SECTION_MM2", "DESIGN_DELTA", "CRANK_SENSE", "DAMPING_S", "T_RAMP_S", "RHO_KS",
+    "STATIC_STEPS",
     "DEFAULTS", "GEOMETRY", "SETTINGS", "build", "undeformed", "target", "shape_errors",
     "rms_error", "max_error", "ks_max_stress", "RESPONSES", "mechanism_clearance",
     "study", "PAPER", "UNITS",
 ]
 
-#: Span of the planar wing section [mm] (the skin's out-of-plane width).
-SPAN_MM = 1000.0
-#: Density of aluminium [t/mm³].
-RHO_AL = 2.7e-9
-#: Young's modulus of aluminium [MPa].
-E_AL = 70000.0
-#: Yield (0.2 % proof) stress of 6061-T6, the minimum of EN 755-2 for extrusions [MPa].
-YIELD_MPA = 240.0
-#: Skin elements of the paper's mesh.
-N_ELEMENTS = 30
-#: Nose droop of the low-speed target [mm].
-DROOP_MM = airfoil.DEFAULT_DROOP_MM
-#: Skin node (of the 30-element mesh) where link_C acts: upper surface, x = 99.2 mm.
-C_NODE = 4
-#: Skin node (of the 30-element mesh) where link_E acts: lower surface, x = 60.0 mm.
-E_NODE = 22
-#: Cross-section of the rigid links, a 10 mm x 10 mm aluminium bar [mm²].
-LINK_SECTION_MM2 = 100.0
+
 #: Stiffness-proportional damping coefficient of the skin [s]: D = beta K. The first mode of
 #: the mechanism has 425 rad/s undeformed, 300 rad/s at its softest (crank angle ~0.3 rad) and
 #: 973 rad/s morphed, so zeta = beta omega / 2 = 0.15 ... 0.49; higher modes are overdamped and
@@ -143,77 +170,14 @@ RHO_KS = 10.0
 #: skin (one chord frame per element, the library's default for beams; docs/frames.md).
 SKINS = {"paper": {"frames": 1, "reference": "first"},
          "accurate": {"frames": "element", "reference": "chord"}}
-#: Crank rotation of the design from the undeformed to the morphed state [rad].
-DESIGN_DELTA = 0.7
 #: Continuation steps of the static reference solution (half of them at the full torque).
 STATIC_STEPS = 20
-
-#: Design variables of the paper's sensitivity study (Table 1): skin wall thickness [mm],
-#: actuation torque [N·mm], pivot A [mm], Young's modulus of the skin [MPa].
-DEFAULTS: dict[str, float] = {
-    "t_w": 2.0,
-    "M_t": 1.0e4,
-    "x_A": 102.0,
-    "y_A": -0.25,
-    "E": E_AL,
-}
-#: Further geometry that ``build`` accepts in ``p`` (not in the paper's study): the bell-crank
-#: points B and D [mm].
-GEOMETRY: dict[str, float] = {
-    "x_B": 99.29,
-    "y_B": -8.25,
-    "x_D": 108.85,
-    "y_D": -5.88,
-}
 #: Keyword arguments of :func:`morphlab.simulate` for the study: 300 steps; the torque ramps up
 #: over 0.1 s and holds for 0.05 s. dt = 0.5 ms resolves the first mode (>= 13 steps per
 #: period); the higher, overdamped modes are damped further by rho_inf = 0.8.
 SETTINGS: dict = {"t_end": 0.15, "dt": 5.0e-4, "rho_inf": 0.8}
 
 
-def _check_elements(n_elements: int) -> int:
-    if not (isinstance(n_elements, (int, np.integer)) and n_elements >= 8):
-        raise ModelError(f"n_elements must be an integer >= 8, got {n_elements!r}")
-    return int(n_elements)
-
-
-def _attachment(node: int, n_elements: int) -> int:
-    """Node of an n-element skin at the arc-length position of ``node`` of the 30-element
-    mesh: the same material point when n is a multiple of 30, else the nearest node."""
-    return int(round(node * n_elements / N_ELEMENTS))
-
-
-@lru_cache(maxsize=8)
-def _nodes(n_elements: int, droop: float) -> tuple[np.ndarray, np.ndarray]:
-    d = airfoil.target_nodes(droop=droop, n_nodes=n_elements + 1)
-    und, tgt = d["undeformed"], d["target"]
-    und.setflags(write=False)
-    tgt.setflags(write=False)
-    return und, tgt
-
-
-def undeformed(n_elements: int = N_ELEMENTS) -> np.ndarray:
-    """Undeformed skin nodes, F first, G last, (n_elements + 1, 2) [mm]."""
-    return _nodes(_check_elements(n_elements), DROOP_MM)[0].copy()
-
-
-def target(p: dict | None = None, n_elements: int = N_ELEMENTS) -> np.ndarray:
-    """Target (drooped) skin nodes, node k the image of undeformed node k, (n + 1, 2) [mm].
-
-    ``p`` is accepted for a uniform signature; the target does not depend on the design
-    variables.
-    """
-    return _nodes(_check_elements(n_elements), DROOP_MM)[1].copy()
-
-
-def _design(p: dict | None) -> dict:
-    q = {**DEFAULTS, **GEOMETRY}
-    if p:
-        unknown = set(p) - set(q)
-        if unknown:
-            raise ModelError(f"unknown design variables {sorted(unknown)}; known: {sorted(q)}")
-        q.update(p)
-    return q
 
 
 def _link(m: Model, P, Q, name: str):
@@ -232,7 +196,8 @@ def _skin_frames(skin: str) -> dict:
 
 
 def _assemble(p: dict | None, n_elements: int, drive: bool,
-              nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "paper") -> Model:
+              nodes: tuple[int, int] = (C_NODE, E_NODE), skin: str = "paper",
+              sense: int = CRANK_SENSE) -> Model:
     q = _design(p)
     n = _check_elements(n_elements)
     X = _nodes(n, DROOP_MM)[0]
@@ -256,12 +221,12 @@ def _assemble(p: dict | None, n_elements: int, drive: bool,
     m.add_revolute(arm, link_e, at=D, name="D")
     m.add_revolute(link_e, skin, at=E, name="E")
     if drive:
-        # crank angle = t (static use only: the derivatives are never evaluated there; zero
+        # crank angle = sense t (static use only: the derivatives are never evaluated there; zero
         # keeps the initial velocity check of compile satisfied)
-        m.add_drive(crank, angle=Custom(lambda t: t, lambda t: 0.0, lambda t: 0.0),
+        m.add_drive(crank, angle=Custom(lambda t: sense * t, lambda t: 0.0, lambda t: 0.0),
                     name="drive")
     else:
-        m.add_torque(crank, q["M_t"], profile=SmoothStep(0.0, T_RAMP_S), name="M_t")
+        m.add_torque(crank, sense * q["M_t"], profile=SmoothStep(0.0, T_RAMP_S), name="M_t")
     return m
 
 
@@ -318,91 +283,6 @@ ks_max_stress = responses.ks_max_stress("skin", RHO_KS)
 RESPONSES = {"ks_max_stress": ks_max_stress, "rms_error": rms_error, "max_error": max_error}
 
 
-# ------------------------------------------------------------------------------- geometry checks
-def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Even-odd ray casting: True for points inside the closed polygon ``poly`` (m, 2)."""
-    x, y = points[:, 0:1], points[:, 1:2]
-    a, b = poly, np.roll(poly, -1, axis=0)
-    straddle = (a[None, :, 1] > y) != (b[None, :, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (
-            b[None, :, 1] - a[None, :, 1])
-    return np.sum(straddle & (x < xc), axis=1) % 2 == 1
-
-
-def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
-    a, b = line[:-1], line[1:]
-    ab = b - a
-    ap = points[:, None, :] - a[None]
-    t = np.clip(np.sum(ap * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0.0, 1.0)
-    d = ap - t[..., None] * ab[None]
-    return np.min(np.sqrt(np.sum(d * d, axis=-1)), axis=1)
-
-
-def _crosses(P, Q, a, b) -> np.ndarray:
-    """Whether segment P-Q properly crosses each segment a_i-b_i."""
-    def orient(u, v, w):
-        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (
-            v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
-
-    d1, d2 = orient(P, Q, a), orient(P, Q, b)
-    d3, d4 = orient(a, b, P), orient(a, b, Q)
-    return (d1 * d2 < 0) & (d3 * d4 < 0)
-
-
-def mechanism_clearance(result, p: dict | None = None, *, tip_fraction: float = 0.1,
-                        nodes: tuple[int, int] = (C_NODE, E_NODE)) -> dict:
-    """How far the mechanism stays inside the skin over a run.
-
-    Parameters
-    ----------
-    result : Result
-        A run of ``build(p)`` (real).
-    p : dict, optional
-        The design the run was built from (default: the defaults).
-    tip_fraction : float
-        Part of each link next to its skin node left out of the link clearance (the link
-        meets the skin there).
-    nodes : (int, int)
-        C and E as nodes of the 30-element mesh.
-
-    Returns
-    -------
-    dict
-        ``"joints"``: smallest signed distance [mm] of A, B, D from the skin contour (closed by
-        the segment G -> F; positive inside) over all time steps; ``"links"``: the same for 20
-        points on each link's remaining length; ``"crossings"``: number of (time step, link,
-        skin element) crossings, the elements next to the link's own node excepted.
-    """
-    q = _design(p)
-    n_nodes = result.node_positions("skin").shape[1]
-    c_node, e_node = (_attachment(k, n_nodes - 1) for k in nodes)
-    skin = np.real(result.node_positions("skin"))
-    A = np.array([np.real(q["x_A"]), np.real(q["y_A"])])
-    B0 = np.array([np.real(q["x_B"]), np.real(q["y_B"])])
-    D0 = np.array([np.real(q["x_D"]), np.real(q["y_D"])])
-    B = np.real(result.point_positions("crank", B0))
-    D = np.real(result.point_positions("arm", D0))
-    s = np.linspace(0.0, 1.0 - tip_fraction, 20)[:, None]
-    joints, links, crossings = np.inf, np.inf, 0
-    for i in range(result.n_t):
-        S = skin[i]
-        for pts, which in ((np.array([A, B[i], D[i]]), "j"),
-                           (B[i] + s * (S[c_node] - B[i]), "l"),
-                           (D[i] + s * (S[e_node] - D[i]), "l")):
-            d = _distance_to_polyline(pts, np.vstack([S, S[:1]]))
-            d = np.where(_inside(pts, S), d, -d)
-            if which == "j":
-                joints = min(joints, float(d.min()))
-            else:
-                links = min(links, float(d.min()))
-        for P, node in ((B[i], c_node), (D[i], e_node)):
-            keep = np.ones(n_nodes - 1, dtype=bool)
-            keep[max(node - 1, 0):node + 1] = False
-            hit = _crosses(P, S[node], S[:-1][keep], S[1:][keep])
-            crossings += int(np.sum(hit))
-    return {"joints": joints, "links": links, "crossings": crossings}
-
 
 # -------------------------------------------------------------------------------------- study
 PAPER = {
@@ -423,19 +303,23 @@ WHY_DIFFERENT = """\
 Why our numbers differ from the paper's: the paper's mechanism geometry, link points and
 target profile are not published (its figure 5a is not available), so this model is a
 reconstruction: our own CST airfoil and drooped target, and a bell crank designed backwards
-from that target on the paper's single-frame skin (morphlab.morphing.design). On the
-accurate skin (one chord frame per element) the mechanism reaches the target more closely
-than the paper's (RMS 0.067 vs 0.63 mm) with lower stress (79 vs 150 MPa). The single frame
-the paper used stretches the skin spuriously by ~0.5 mm and moves its nodes by up to
-0.28 mm, as large as the shape error itself, and flips the signs of de_rms/dt_w, /dM_t and
-/dE (table above). Table 1 signs as the paper's: 6 of 10 on the accurate skin. Both obey
-E dsigma/dE + M_t dsigma/dM_t = sigma (stress = E f(M_t/E) for a torque-loaded elastic
-skin); the paper's stress grows faster than its torque (M_t dsigma/dM_t = 266 > 150 MPa), so
-its dsigma/dE < 0, ours slower (40 < 79 MPa), so ours > 0. Our short crank arms (~8.5 mm) make
-stress and shape far more sensitive to where the pivot A sits (dKS/dx_A = +22 vs
--0.78 MPa/mm), with other signs for x_A and y_A. Timing: the paper's code took 148 s per
-primal run; ours takes a fraction of a second, so fixed per-run costs (model compilation,
-response evaluation) weigh more in our ratios."""
+from that target on the accurate skin (nonlinear fit of the link forces on its statics,
+morphlab.morphing.design). It reaches the target more closely than the paper's (RMS 0.020 vs
+0.63 mm) with lower stress (78 vs 150 MPa). Table 1 signs as the paper's: 6 of 10. Both obey
+E dsigma/dE + M_t dsigma/dM_t = sigma and E de/dE + M_t de/dM_t = 0 (the state depends on
+M_t/E only). Like the paper's, our stress grows faster than the torque (M_t dsigma/dM_t =
+108 > 78 MPa, so dsigma/dE < 0) and more torque overshoots the target (de_rms/dM_t > 0); at
+an exact inverse design de_rms/dM_t vanishes (the fit is stationary in the forces), so that
+sign comes from the design's rounding to 0.01 mm (its size from how sharp the minimum of
+e_rms in M_t is), not from the design. The x_A and y_A signs differ:
+with B and D fixed, moving A changes the moment arm of the net link force (about 2.8 kN,
+pointing aft and up) about the pivot, and with a counter-clockwise crank that raises the
+forces for +x_A and lowers them for +y_A; the paper's signs would need a net force pointing
+forward or a clockwise crank (none passed the design checks here). Our short crank arm
+(|AB| = 8.9 mm) makes both far larger than the paper's. The paper's single-frame skin, with
+this mechanism, errs by 0.30 mm against the accurate skin. Timing: the paper's code took
+148 s per primal run; ours takes a fraction of a second, so fixed per-run costs (model
+compilation, response evaluation) weigh more in our ratios."""
 
 
 def study(out=None, overrides: dict | None = None, *, quick: bool = False, figures: bool = True,
