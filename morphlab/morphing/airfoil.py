@@ -202,6 +202,9 @@ def drooped_curve(
 ) -> FloatArray:
     """Low-speed target: the skin curve with its nose drooped, at constant arc length.
 
+    (Long for its documentation: the code builds the blend and solves for its two
+    coefficients.)
+
     Parameters
     ----------
     curve : array_like, shape (m, 2)

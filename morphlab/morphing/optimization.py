@@ -207,9 +207,10 @@ def reached(result, target: float) -> dict:
 
 
 def compare_optimizers(pb: Problem, *, maxiter: int = 60, free_runs: int = 400,
-                       progress=False) -> dict:
+                       fd_runs: int | None = None, progress=False) -> dict:
     """The problem solved three ways: SLSQP with exact (direct) gradients, SLSQP with
-    forward-difference gradients and COBYLA (derivative-free, at most ``free_runs`` runs).
+    forward-difference gradients (at most ``fd_runs`` runs, each a design and its difference
+    steps; None: SLSQP's own limits) and COBYLA (derivative-free, at most ``free_runs`` runs).
     Each entry holds the OptimizationResult and what it took to reach the exact solution's
     objective to within 0.1 % of the improvement it made (:func:`reached`)."""
     from ..studies.optimize import optimize
@@ -217,7 +218,7 @@ def compare_optimizers(pb: Problem, *, maxiter: int = 60, free_runs: int = 400,
     opts = {"ftol": 1e-7, "maxiter": maxiter}
     out = {"exact": optimize(pb, "SLSQP", options=opts, progress=progress)}
     out["finite_difference"] = optimize(pb, "SLSQP", gradient="finite-difference",
-                                        options=opts, progress=progress)
+                                        max_runs=fd_runs, options=opts, progress=progress)
     out["derivative_free"] = optimize(pb, "COBYLA", max_runs=free_runs,
                                       options={"rhobeg": 0.1, "maxiter": free_runs},
                                       progress=progress)
