@@ -159,6 +159,17 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
     return cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a
 
 
+@njit(cache=True, inline="always")
+def _rotated(c, s, cux, cuy, isax, isay, isvx, isvy):
+    """``A c_u``, ``AĨ c_u``, ``A I_S a_f``, ``AĨ I_S a_f``, ``A I_S q_f'``, ``AĨ I_S q_f'``
+    (each an (x, y) pair) for ``A`` the rotation by the body angle (``c``, ``s`` its cosine
+    and sine; ``AĨ x = (-(A x)_y, (A x)_x)``)."""
+    cx, cy = c * cux - s * cuy, s * cux + c * cuy
+    ax, ay = c * isax - s * isay, s * isax + c * isay
+    vx, vy = c * isvx - s * isvy, s * isvx + c * isvy
+    return (cx, cy), (-cy, cx), (ax, ay), (-ay, ax), (vx, vy), (-vy, vx)
+
+
 @njit(cache=True)
 def body_residual(S, q, v, a, wm, wf, parts, R):
     """Add the bodies' ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
@@ -206,16 +217,8 @@ def body_residual(S, q, v, a, wm, wf, parts, R):
          sq_a) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
                             Mq, Sq, flex_on)
         # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
-        Acx = c * cux - s * cuy
-        Acy = s * cux + c * cuy
-        AIcx = -Acy
-        AIcy = Acx
-        Aisa_x = c * isax - s * isay
-        Aisa_y = s * isax + c * isay
-        Aisv_x = c * isvx - s * isvy
-        Aisv_y = s * isvx + c * isvy
-        AIisv_x = -Aisv_y
-        AIisv_y = Aisv_x
+        ((Acx, Acy), (AIcx, AIcy), (Aisa_x, Aisa_y), _, _,
+         (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
         aRx = a[iR0]
         aRy = a[iR1]
         mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
@@ -302,16 +305,8 @@ def _reference_block(S, b, c, s, v, a, qf, vf, af, Mq, Sq, flex_on, cm, cf, bh2,
     (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
      _) = _body_sums(b, S.body_scal, S.flex_off, S.flex_IS, S.flex_I0S, S.flex_I0IS, qf, vf,
                      af, Mq, Sq, flex_on)
-    Acx = c * cux - s * cuy
-    Acy = s * cux + c * cuy
-    AIcx = -Acy
-    AIcy = Acx
-    AIisa_x = -(s * isax + c * isay)
-    AIisa_y = c * isax - s * isay
-    Aisv_x = c * isvx - s * isvy
-    Aisv_y = s * isvx + c * isvy
-    AIisv_x = -Aisv_y
-    AIisv_y = Aisv_x
+    ((Acx, Acy), (AIcx, AIcy), _, (AIisa_x, AIisa_y), (Aisv_x, Aisv_y),
+     (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
     aRx = a[iR0]
     aRy = a[iR1]
     mthth = S.body_scal[b, 3] + 2.0 * i0s_q + qMq

@@ -53,3 +53,41 @@ def tip_loaded_cantilever(p, n_elem=4, length=100.0, frames="element"):
     m.add_force(beam, at=(length, 0.0), force=(0.0, -p["F"]), profile=ml.SmoothStep(0.0, 4e-3),
                 name="F")
     return m
+
+
+def check_step_matrix_by_complex_step(model, seed: int) -> None:
+    """Assert that every column of the step matrix equals the complex-step derivative of the
+    step residual (h = 1e-30: no truncation or cancellation error, so agreement to round-off;
+    1e-9 of the column's largest entry) at a random state far from any solution: nonzero
+    velocities, accelerations and multipliers, so every term of the matrix shows."""
+    from morphlab.kernels.assemble import step_matrix, step_residual
+
+    from morphlab.compile import kernel_arrays
+
+    system = ml.compile_model(model)
+    n, n_dof = system.n, system.n_dof
+    rng = np.random.default_rng(seed)
+    c, cd, cdd, F, T = system.time_arrays(0.0)
+    qh = system.q0 + 0.05 * rng.standard_normal(n_dof)
+    vh = 3.0 * rng.standard_normal(n_dof)
+    z = rng.standard_normal(n)
+    bh2, gh, scale, b0, b1 = 0.3, 0.7, 2.0, 5.0, 3.0
+    w = np.array([1.1, 0.9, 0.8, 1.3, 0.6])
+    data = np.zeros(system.nnz)
+    step_matrix(kernel_arrays(system), z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
+    A = np.zeros((n, n))
+    for col in range(n):
+        sl = slice(system.indptr[col], system.indptr[col + 1])
+        A[system.indices[sl], col] = data[sl]
+    Sc = kernel_arrays(system, np.complex128)
+    cplx = [x.astype(complex) for x in (qh, vh, c, cd, cdd, F, T)]
+    h = 1e-30
+    for k in range(n):
+        zk = z.astype(complex)
+        zk[k] += 1j * h
+        R = np.zeros(n, dtype=complex)
+        step_residual(Sc, zk, cplx[0], cplx[1], bh2, gh, scale, w, b0, b1, *cplx[2:], n_dof,
+                      np.zeros(n, dtype=complex), R)
+        col = R.imag / h
+        assert np.abs(A[:, k] - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
+            system.unknown_names[k]

@@ -12,12 +12,10 @@ the direct and adjoint methods against the whole-run complex step.
 
 import numpy as np
 import pytest
-from models import E_AL, RHO_AL, straight_nodes
+from models import E_AL, RHO_AL, check_step_matrix_by_complex_step, straight_nodes
 from morphlab.kernels import beam as kbeam
-from morphlab.kernels.assemble import step_matrix, step_residual
 
 import morphlab as ml
-from morphlab.compile import kernel_arrays
 from morphlab.compile.forces import line_integrals
 
 
@@ -67,33 +65,7 @@ def test_newton_matrix_is_the_complex_step_of_the_residual(model):
     of the column's largest entry asserted) at a random state far from any solution: nonzero
     velocities and accelerations, so the stiffness, geometric (f d²l/dq²), damping (c grad l
     (H q')^T and gh c grad l grad l^T) and line-load terms all show."""
-    system = ml.compile_model(model)
-    n, n_dof = system.n, system.n_dof
-    rng = np.random.default_rng(7)
-    c, cd, cdd, F, T = system.time_arrays(0.0)
-    qh = system.q0 + 0.05 * rng.standard_normal(n_dof)
-    vh = 3.0 * rng.standard_normal(n_dof)
-    z = rng.standard_normal(n)
-    bh2, gh, scale, b0, b1 = 0.3, 0.7, 2.0, 5.0, 3.0
-    w = np.array([1.1, 0.9, 0.8, 1.3, 0.6])
-    data = np.zeros(system.nnz)
-    step_matrix(kernel_arrays(system), z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
-    A = np.zeros((n, n))
-    for col in range(n):
-        sl = slice(system.indptr[col], system.indptr[col + 1])
-        A[system.indices[sl], col] = data[sl]
-    Sc = kernel_arrays(system, np.complex128)
-    cplx = [x.astype(complex) for x in (qh, vh, c, cd, cdd, F, T)]
-    h = 1e-30
-    for k in range(n):
-        zk = z.astype(complex)
-        zk[k] += 1j * h
-        R = np.zeros(n, dtype=complex)
-        step_residual(Sc, zk, cplx[0], cplx[1], bh2, gh, scale, w, b0, b1, *cplx[2:], n_dof,
-                      np.zeros(n, dtype=complex), R)
-        col = R.imag / h
-        assert np.abs(A[:, k] - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
-            system.unknown_names[k]
+    check_step_matrix_by_complex_step(model, seed=7)
 
 
 def test_line_integrals_equal_gauss_quadrature_of_the_shape_functions():

@@ -4,11 +4,9 @@ a bead on a rotating rod)."""
 
 import numpy as np
 import pytest
-from models import E_AL, RHO_AL, straight_nodes
-from morphlab.kernels.assemble import step_matrix, step_residual
+from models import E_AL, RHO_AL, check_step_matrix_by_complex_step, straight_nodes
 
 import morphlab as ml
-from morphlab.compile import kernel_arrays
 
 
 def _guide_models():
@@ -40,33 +38,7 @@ def test_newton_matrix_is_the_complex_step_of_the_residual(model):
     1e-9 of the column's largest entry) at a random state far from any solution (nonzero
     velocities, accelerations and multipliers, so every term of the slide row's Hessian and of
     its velocity terms shows)."""
-    system = ml.compile_model(model)
-    n, n_dof = system.n, system.n_dof
-    rng = np.random.default_rng(4)
-    c, cd, cdd, F, T = system.time_arrays(0.0)
-    qh = system.q0 + 0.05 * rng.standard_normal(n_dof)
-    vh = 3.0 * rng.standard_normal(n_dof)
-    z = rng.standard_normal(n)
-    bh2, gh, scale, b0, b1 = 0.3, 0.7, 2.0, 5.0, 3.0
-    w = np.array([1.1, 0.9, 0.8, 1.3, 0.6])
-    data = np.zeros(system.nnz)
-    step_matrix(kernel_arrays(system), z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
-    A = np.zeros((n, n))
-    for col in range(n):
-        A[system.indices[system.indptr[col]:system.indptr[col + 1]], col] = \
-            data[system.indptr[col]:system.indptr[col + 1]]
-    Sc = kernel_arrays(system, np.complex128)
-    cplx = [x.astype(complex) for x in (qh, vh, c, cd, cdd, F, T)]
-    h = 1e-30
-    for k in range(n):
-        zk = z.astype(complex)
-        zk[k] += 1j * h
-        R = np.zeros(n, dtype=complex)
-        step_residual(Sc, zk, cplx[0], cplx[1], bh2, gh, scale, w, b0, b1, *cplx[2:], n_dof,
-                      np.zeros(n, dtype=complex), R)
-        col = R.imag / h
-        assert np.abs(A[:, k] - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
-            system.unknown_names[k]
+    check_step_matrix_by_complex_step(model, seed=4)
 
 
 def _slider_crank(r=20.0, l=50.0, th0=np.pi / 6, omega=40.0):
