@@ -45,7 +45,7 @@ TOLERANCES = {**{t: 0.05 for t in THICKNESS}, "x_A": 0.1, "y_A": 0.1, "x_B": 0.1
 
 
 def start() -> dict:
-    """The default design (the paper's mechanism, uniform thickness) in the variables of
+    """The default design (the study's mechanism, uniform thickness) in the variables of
     :func:`build`, with the modulus ``E``."""
     p = {t: le.DEFAULTS["t_w"] for t in THICKNESS}
     p.update({k: {**le.DEFAULTS, **le.GEOMETRY}[k] for k in MECHANISM})
