@@ -273,150 +273,135 @@ def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
     data : (nnz,), in/out
         CSC data array of the Newton matrix.
     """
-    flex_dof, elem_body, elem_fdof = S.flex_dof, S.elem_body, S.elem_fdof
+    body_ref, body_scal, body_damp, flex_off, flex_dof = (S.body_ref, S.body_scal, S.body_damp,
+                                                          S.flex_off, S.flex_dof)
+    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
+    elem_body, elem_fdof, elem_M, elem_St, elem_K = (S.elem_body, S.elem_fdof, S.elem_M, S.elem_St,
+                                                     S.elem_K)
+    border_off, border_map, elem_map = S.border_off, S.border_map, S.elem_map
+    gravity = S.gravity
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
-        q, v, a, flex_dof, elem_body, S.body_damp, elem_fdof, S.elem_M, S.elem_St, S.elem_K,
+        q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
         np.arange(elem_fdof.shape[0]), n_flex, np.bool_(True), data
     )
     all_flex = np.ones(n_flex, dtype=np.bool_)
+    gx = gravity[0]
+    gy = gravity[1]
     blk = np.zeros((3, 3), dtype=data.dtype)
-    for b in range(S.body_ref.shape[0]):
-        ith = S.body_ref[b, 2]
-        c = np.cos(q[ith])
-        s = np.sin(q[ith])
-        _reference_block(S, b, c, s, v, a, qf, vf, af, Mq, Sq, all_flex, cm, cf, bh2, gh, blk,
-                         data)
-        _border_entries(S, b, c, s, v, a, Mq, Mv, Sq, Sv, Sa, cm, cf, bh2, gh, data)
-    _element_blocks(S, v, a, cm, cf, bh2, gh, data)
-
-
-@njit(cache=True)
-def _reference_block(S, b, c, s, v, a, qf, vf, af, Mq, Sq, flex_on, cm, cf, bh2, gh, blk, data):
-    """The 3 x 3 reference block of body ``b`` (rows and columns ``R_x, R_y, theta``) of
-    :func:`body_jacobian`, at the body angle's ``c = cos theta``, ``s = sin theta``; ``blk``
-    (3, 3) scratch."""
-    iR0, iR1, ith = S.body_ref[b, 0], S.body_ref[b, 1], S.body_ref[b, 2]
-    m = S.body_scal[b, 0]
-    gx = S.gravity[0]
-    gy = S.gravity[1]
-    thd = v[ith]
-    tha = a[ith]
-    (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
-     _) = _body_sums(b, S.body_scal, S.flex_off, S.flex_IS, S.flex_I0S, S.flex_I0IS, qf, vf,
-                     af, Mq, Sq, flex_on)
-    ((Acx, Acy), (AIcx, AIcy), _, (AIisa_x, AIisa_y), (Aisv_x, Aisv_y),
-     (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
-    aRx = a[iR0]
-    aRy = a[iR1]
-    mthth = S.body_scal[b, 3] + 2.0 * i0s_q + qMq
-    for i in range(3):
-        for j in range(3):
-            blk[i, j] = 0.0
-    # mass
-    blk[0, 0] += cm * m
-    blk[1, 1] += cm * m
-    blk[0, 2] += cm * AIcx
-    blk[1, 2] += cm * AIcy
-    blk[2, 0] += cm * AIcx
-    blk[2, 1] += cm * AIcy
-    blk[2, 2] += cm * mthth
-    # d(M a)/d th
-    blk[0, 2] += cm * bh2 * (-Acx * tha + AIisa_x)
-    blk[1, 2] += cm * bh2 * (-Acy * tha + AIisa_y)
-    blk[2, 2] += cm * bh2 * (-(Acx * aRx + Acy * aRy))
-    # F = -Q_v - Q_g: d/d th and d/d th'
-    # Q_v,R = th'^2 A c_u - 2 th' AĨ I_S q_f'
-    blk[0, 2] -= cf * bh2 * (thd * thd * AIcx + 2.0 * thd * Aisv_x)
-    blk[1, 2] -= cf * bh2 * (thd * thd * AIcy + 2.0 * thd * Aisv_y)
-    blk[0, 2] -= cf * gh * (2.0 * thd * Acx - 2.0 * AIisv_x)
-    blk[1, 2] -= cf * gh * (2.0 * thd * Acy - 2.0 * AIisv_y)
-    # Q_v,th = -2 th' (I_0S + M_ff q_f).q_f'  -> d/d th' only
-    blk[2, 2] -= cf * gh * (-2.0 * (i0s_v + qMv))
-    # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
-    blk[2, 2] -= cf * bh2 * (-(Acx * gx + Acy * gy))
-    o = S.border_off[b]
-    for i in range(3):
-        for j in range(3):
-            p = S.border_map[o + 3 * i + j]
-            if p >= 0:
-                data[p] += blk[i, j]
-
-
-@njit(cache=True)
-def _border_entries(S, b, c, s, v, a, Mq, Mv, Sq, Sv, Sa, cm, cf, bh2, gh, data):
-    """The reference-row/flex-column and flex-row/reference-column entries of body ``b`` of
-    :func:`body_jacobian` (``c``, ``s`` as in :func:`_reference_block`)."""
-    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
-    border_map = S.border_map
-    ith = S.body_ref[b, 2]
-    thd = v[ith]
-    tha = a[ith]
-    aRx = a[S.body_ref[b, 0]]
-    aRy = a[S.body_ref[b, 1]]
-    gx = S.gravity[0]
-    gy = S.gravity[1]
-    f0 = S.flex_off[b]
-    nf = S.flex_off[b + 1] - f0
-    o_rf = S.border_off[b] + 9
-    o_fr = o_rf + 3 * nf
-    for kk in range(nf):
-        k = f0 + kk
-        isx = flex_IS[k, 0]
-        isy = flex_IS[k, 1]
-        Aisx = c * isx - s * isy
-        Aisy = s * isx + c * isy
-        AIisx = -Aisy
-        AIisy = Aisx
-        # rows R (0, 1), th (2); column f_k
-        vR0 = cm * Aisx + cm * bh2 * AIisx * tha
-        vR1 = cm * Aisy + cm * bh2 * AIisy * tha
-        # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
-        vR0 += -cf * bh2 * thd * thd * Aisx + cf * gh * 2.0 * thd * AIisx
-        vR1 += -cf * bh2 * thd * thd * Aisy + cf * gh * 2.0 * thd * AIisy
-        mthf = flex_I0IS[k] + Sq[k]
-        vth = cm * mthf
-        vth += cm * bh2 * (
-            AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k]) - Sa[k]
-        )
-        # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
-        # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
-        vth -= cf * bh2 * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy))
-        vth -= cf * gh * (-2.0 * thd * (flex_I0S[k] + Mq[k]))
-        # row f_k; columns R_x, R_y, th
-        fR0 = cm * Aisx
-        fR1 = cm * Aisy
-        # d(M a)_f/d th = (AĨ I_S_k).a_R
-        fth = cm * mthf + cm * bh2 * (AIisx * aRx + AIisy * aRy)
-        # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
-        fth -= cf * gh * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k])
-        # Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
-        fth -= cf * bh2 * (AIisx * gx + AIisy * gy)
-        _add_at(data, border_map[o_rf + kk], vR0)
-        _add_at(data, border_map[o_rf + nf + kk], vR1)
-        _add_at(data, border_map[o_rf + 2 * nf + kk], vth)
-        _add_at(data, border_map[o_fr + 3 * kk], fR0)
-        _add_at(data, border_map[o_fr + 3 * kk + 1], fR1)
-        _add_at(data, border_map[o_fr + 3 * kk + 2], fth)
-
-
-@njit(cache=True, inline="always")
-def _add_at(data, p, val):
-    """``data[p] += val`` unless ``p`` is -1 (an entry the pattern skips)."""
-    if p >= 0:
-        data[p] += val
-
-
-@njit(cache=True)
-def _element_blocks(S, v, a, cm, cf, bh2, gh, data):
-    """The flex-flex entries of :func:`body_jacobian`, element by element."""
-    elem_M, elem_St, elem_K, elem_map = S.elem_M, S.elem_St, S.elem_K, S.elem_map
-    for e in range(S.elem_fdof.shape[0]):
-        b = S.elem_body[e]
-        ith = S.body_ref[b, 2]
+    for b in range(body_ref.shape[0]):
+        iR0 = body_ref[b, 0]
+        iR1 = body_ref[b, 1]
+        ith = body_ref[b, 2]
+        m = body_scal[b, 0]
+        th = q[ith]
         thd = v[ith]
         tha = a[ith]
-        beta = S.body_damp[b]
+        c = np.cos(th)
+        s = np.sin(th)
+        (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
+         _) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
+                            Mq, Sq, all_flex)
+        ((Acx, Acy), (AIcx, AIcy), _, (AIisa_x, AIisa_y), (Aisv_x, Aisv_y),
+         (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
+        aRx = a[iR0]
+        aRy = a[iR1]
+        mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
+        # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
+        for i in range(3):
+            for j in range(3):
+                blk[i, j] = 0.0
+        # mass
+        blk[0, 0] += cm * m
+        blk[1, 1] += cm * m
+        blk[0, 2] += cm * AIcx
+        blk[1, 2] += cm * AIcy
+        blk[2, 0] += cm * AIcx
+        blk[2, 1] += cm * AIcy
+        blk[2, 2] += cm * mthth
+        # d(M a)/d th
+        blk[0, 2] += cm * bh2 * (-Acx * tha + AIisa_x)
+        blk[1, 2] += cm * bh2 * (-Acy * tha + AIisa_y)
+        blk[2, 2] += cm * bh2 * (-(Acx * aRx + Acy * aRy))
+        # F = -Q_v - Q_g: d/d th and d/d th'
+        # Q_v,R = th'^2 A c_u - 2 th' AĨ I_S q_f'
+        dqvR_dth_x = thd * thd * AIcx + 2.0 * thd * Aisv_x
+        dqvR_dth_y = thd * thd * AIcy + 2.0 * thd * Aisv_y
+        blk[0, 2] -= cf * bh2 * dqvR_dth_x
+        blk[1, 2] -= cf * bh2 * dqvR_dth_y
+        blk[0, 2] -= cf * gh * (2.0 * thd * Acx - 2.0 * AIisv_x)
+        blk[1, 2] -= cf * gh * (2.0 * thd * Acy - 2.0 * AIisv_y)
+        # Q_v,th = -2 th' (I_0S + M_ff q_f).q_f'  -> d/d th' only
+        blk[2, 2] -= cf * gh * (-2.0 * (i0s_v + qMv))
+        # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
+        blk[2, 2] -= cf * bh2 * (-(Acx * gx + Acy * gy))
+        o = border_off[b]
+        for i in range(3):
+            for j in range(3):
+                p = border_map[o + 3 * i + j]
+                if p >= 0:
+                    data[p] += blk[i, j]
+        f0 = flex_off[b]
+        nf = flex_off[b + 1] - f0
+        o_rf = o + 9
+        o_fr = o + 9 + 3 * nf
+        for kk in range(nf):
+            k = f0 + kk
+            isx = flex_IS[k, 0]
+            isy = flex_IS[k, 1]
+            Aisx = c * isx - s * isy
+            Aisy = s * isx + c * isy
+            AIisx = -Aisy
+            AIisy = Aisx
+            # rows R (0, 1), th (2); column f_k
+            vR0 = cm * Aisx + cm * bh2 * AIisx * tha
+            vR1 = cm * Aisy + cm * bh2 * AIisy * tha
+            # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
+            vR0 += -cf * bh2 * thd * thd * Aisx + cf * gh * 2.0 * thd * AIisx
+            vR1 += -cf * bh2 * thd * thd * Aisy + cf * gh * 2.0 * thd * AIisy
+            mthf = flex_I0IS[k] + Sq[k]
+            vth = cm * mthf
+            vth += cm * bh2 * (
+                AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k]) - Sa[k]
+            )
+            # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
+            # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
+            vth -= cf * bh2 * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy))
+            vth -= cf * gh * (-2.0 * thd * (flex_I0S[k] + Mq[k]))
+            p = border_map[o_rf + kk]
+            if p >= 0:
+                data[p] += vR0
+            p = border_map[o_rf + nf + kk]
+            if p >= 0:
+                data[p] += vR1
+            p = border_map[o_rf + 2 * nf + kk]
+            if p >= 0:
+                data[p] += vth
+            # row f_k; columns R_x, R_y, th
+            fR0 = cm * Aisx
+            fR1 = cm * Aisy
+            # d(M a)_f/d th = (AĨ I_S_k).a_R
+            fth = cm * mthf + cm * bh2 * (AIisx * aRx + AIisy * aRy)
+            # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
+            fth -= cf * gh * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k])
+            # Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
+            fth -= cf * bh2 * (AIisx * gx + AIisy * gy)
+            p = border_map[o_fr + 3 * kk]
+            if p >= 0:
+                data[p] += fR0
+            p = border_map[o_fr + 3 * kk + 1]
+            if p >= 0:
+                data[p] += fR1
+            p = border_map[o_fr + 3 * kk + 2]
+            if p >= 0:
+                data[p] += fth
+    # ---- flex-flex block, element by element
+    for e in range(elem_fdof.shape[0]):
+        b = elem_body[e]
+        ith = body_ref[b, 2]
+        thd = v[ith]
+        tha = a[ith]
+        beta = body_damp[b]
         coefM = cm - cf * bh2 * thd * thd
         coefK = cf * (bh2 + gh * beta)
         coefS = cm * bh2 * tha + cf * gh * 2.0 * thd
