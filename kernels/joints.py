@@ -11,7 +11,10 @@ Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 
 * :data:`ROW_SLIDE` (3): the distance of P from a line through Q fixed in Q's body,
   ``n(psi) . (r_P - r_Q)`` with ``n = (cos psi, sin psi)`` and ``psi = theta_Q + phi_Q + beta``
   (``beta`` the normal's angle in Q's frame): the row of a prismatic joint that keeps P on the
-  guide. Unlike the other kinds it couples both sides (its Hessian has P-Q blocks).
+  guide. Unlike the other kinds it couples both sides (its Hessian has P-Q blocks). Its code
+  is compiled only for models that have slide rows: the kernels take the switch ``S.slides``
+  (``True``, or ``None`` for a model without them) as an argument, and Numba drops a branch
+  ``if slides is not None`` for an argument typed ``None`` (``kernels.system``).
 
 A side (P or Q) is described by the global DOFs ``(R_x, R_y, theta, u, v, phi)`` of its point
 (``-1`` where absent; all ``-1`` for the ground), its body-frame position ``u0[0:2]`` and an
@@ -272,11 +275,13 @@ def _point_side(kind, dofs, u, q, v, a):
 
 
 @njit(cache=True, inline="always")
-def _row(kind, dofs0, dofs1, u0, u1, q, v, a):
+def _row(kind, slides, dofs0, dofs1, u0, u1, q, v, a):
     """``(g, vHv, grad, Hv, Ha, dvHv)`` of one row of any kind, signs applied, the last four as
-    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`)."""
-    if kind == ROW_SLIDE:
-        return _slide(dofs0, dofs1, u0, u1, q, v, a)
+    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`). ``slides``: the
+    switch ``S.slides`` (module docstring), an argument of every compiled caller."""
+    if slides is not None:
+        if kind == ROW_SLIDE:
+            return _slide(dofs0, dofs1, u0, u1, q, v, a)
     g0, vHv0, gr0, Hv0, Ha0, dv0 = _point_side(kind, dofs0, u0, q, v, a)
     g1, vHv1, gr1, Hv1, Ha1, dv1 = _point_side(kind, dofs1, u1, q, v, a)
     return (g0 - g1, vHv0 - vHv1, (gr0, _neg(gr1)), (Hv0, _neg(Hv1)), (Ha0, _neg(Ha1)),
@@ -284,12 +289,12 @@ def _row(kind, dofs0, dofs1, u0, u1, q, v, a):
 
 
 @njit(cache=True)
-def _row_of(kind, dofs0, dofs1, u0, u1, q, v, a):
+def _row_of(kind, slides, dofs0, dofs1, u0, u1, q, v, a):
     """:func:`_row` as a called function, for the Newton matrix and the violation diagnostics:
     the residual inlines the row (it runs every Newton iteration and needs only ``g``, ``vHv``
     and ``grad``); compiling the whole row inline into every kernel that reads it was the
     largest share of a cold start."""
-    return _row(kind, dofs0, dofs1, u0, u1, q, v, a)
+    return _row(kind, slides, dofs0, dofs1, u0, u1, q, v, a)
 
 
 @njit(cache=True, inline="always")
@@ -298,13 +303,15 @@ def _u(con_u0, i, side):
 
 
 @njit(cache=True)
-def constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows, n_dof,
-                        R):
+def constraint_residual(slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows,
+                        n_dof, R):
     """Add ``wl J^T lam`` to the equation rows and ``scale (wcm J a - wcf F_c)`` to the
     constraint rows ``R[n_dof + i]``.
 
     Parameters
     ----------
+    slides : True or None
+        ``S.slides`` (module docstring).
     lam : (n_con,)
         Physical Lagrange multipliers.
     c, cd, cdd : (n_con,)
@@ -320,7 +327,7 @@ def constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd
     zero = R[0] * 0.0
     for i in rows:
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, vHv, grad, _, _, _ = _row(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
+        g, vHv, grad, _, _, _ = _row(con_kind[i], slides, dofs[0], dofs[1], _u(con_u0, i, 0),
                                      _u(con_u0, i, 1), q, v, a)
         Ja = zero
         Jv = zero
@@ -336,8 +343,9 @@ def constraint_residual(S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd
 
 
 @njit(cache=True)
-def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
-    """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC ``data``.
+def constraint_jacobian(slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
+    """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC ``data``
+    (``slides``: ``S.slides``, module docstring).
 
     ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
     ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
@@ -350,7 +358,7 @@ def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, d
         kind = con_kind[i]
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
         u = (_u(con_u0, i, 0), _u(con_u0, i, 1))
-        _, _, grad, Hv, Ha, dvHv = _row_of(kind, dofs[0], dofs[1], u[0], u[1], q, v, a)
+        _, _, grad, Hv, Ha, dvHv = _row_of(kind, slides, dofs[0], dofs[1], u[0], u[1], q, v, a)
         for side in range(2):
             for j in range(6):
                 if dofs[side][j] < 0:
@@ -367,9 +375,11 @@ def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, d
                 if p >= 0:
                     data[p] += cl * scale * gr
         coef = cl * bh2 * lam[i]
-        if kind == ROW_SLIDE:
-            _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, data)
-        elif kind != ROW_ANGLE:
+        if slides is not None:
+            if kind == ROW_SLIDE:
+                _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, data)
+                continue
+        if kind != ROW_ANGLE:
             for side in range(2):
                 if dofs[side][0] >= 0 or dofs[side][2] >= 0:
                     sg = 1.0 if side == 0 else -1.0
@@ -378,13 +388,14 @@ def constraint_jacobian(S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, d
 
 
 @njit(cache=True)
-def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
+def constraint_values(slides, q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
     """Position- and velocity-level violation of every row: ``phi = g - c``,
-    ``phid = J q' - c'`` (each (n_con,), out)."""
+    ``phid = J q' - c'`` (each (n_con,), out; ``slides``: True if ``con_kind`` has slide rows,
+    else None)."""
     zero = q[0] * 0.0
     for i in range(con_kind.shape[0]):
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, _, grad, _, _, _ = _row_of(con_kind[i], dofs[0], dofs[1], _u(con_u0, i, 0),
+        g, _, grad, _, _, _ = _row_of(con_kind[i], slides, dofs[0], dofs[1], _u(con_u0, i, 0),
                                       _u(con_u0, i, 1), q, v, v)
         Jv = zero
         for side in range(2):
@@ -396,8 +407,9 @@ def constraint_values(q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
 
 
 @njit(cache=True)
-def constraint_violation_history(Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
-    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call.
+def constraint_violation_history(slides, Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
+    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call (``slides``: as for
+    :func:`constraint_values`).
 
     ``Q, V`` (n_t, n_dof); ``C, CD`` (n_t, n_con) constraint targets; ``viol, vviol`` (n_t,),
     out (magnitudes of the real parts: a diagnostic, not differentiated)."""
@@ -405,7 +417,7 @@ def constraint_violation_history(Q, V, C, CD, con_kind, con_dofs, con_u0, viol, 
     phi = np.zeros(n_con, dtype=Q.dtype)
     phid = np.zeros(n_con, dtype=Q.dtype)
     for k in range(Q.shape[0]):
-        constraint_values(Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
+        constraint_values(slides, Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
         m0 = 0.0
         m1 = 0.0
         for i in range(n_con):

@@ -26,7 +26,8 @@ from .joints import _side, _side_hessian
 
 @njit(cache=True)
 def load_residual(S, q, wf, F, T, loads, torques, R):
-    """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R``.
+    """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R`` (line
+    loads: :func:`line_load_residual`).
 
     Parameters
     ----------
@@ -40,27 +41,11 @@ def load_residual(S, q, wf, F, T, loads, torques, R):
     T : (n_torque,)
         Torque values at this time [force·length].
     loads, torques : int64 arrays
-        The loads and torques evaluated (all, or those a design variable changes).
+        The loads and torques evaluated (all, or those a design variable changes; the line
+        loads among them are skipped).
     """
     load_dofs, load_u0, torque_dofs = S.load_dofs, S.load_u0, S.torque_dofs
     for i in loads:
-        qx, qy = wf * F[i, 0], wf * F[i, 1]
-        for e in range(S.line_off[i], S.line_off[i + 1]):
-            # Q_R = L q, Q_theta = (AĨ)^T q . (U + N d), Q_d = N^T A^T q (module docstring)
-            el = S.line_elem[e]
-            ref = S.body_ref[S.elem_body[el]]
-            c, s = np.cos(q[ref[2]]), np.sin(q[ref[2]])
-            ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q; (AĨ)^T q = (ay, -ax)
-            mom = ay * S.line_u0[e, 1] - ax * S.line_u0[e, 2]
-            for j in range(6):
-                f = S.elem_fdof[el, j]
-                if f >= 0:
-                    d = S.flex_dof[f]
-                    mom += (ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]) * q[d]
-                    R[d] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
-            R[ref[0]] -= S.line_u0[e, 0] * qx
-            R[ref[1]] -= S.line_u0[e, 0] * qy
-            R[ref[2]] -= mom
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])
         if dofs[0] < 0 and dofs[2] < 0:
@@ -79,10 +64,51 @@ def load_residual(S, q, wf, F, T, loads, torques, R):
 
 @njit(cache=True)
 def load_jacobian(S, q, cf, bh2, F, data):
-    """Add ``-cf bh2 d(Q_ext)/dq`` of point forces and line loads to ``data`` (positions
-    ``S.load_map`` (n_load, 6, 6) and ``S.line_map`` (n_line, 7, 7))."""
+    """Add ``-cf bh2 d(Q_ext)/dq`` of the point forces to ``data`` (positions ``S.load_map``
+    (n_load, 6, 6); line loads: :func:`line_load_jacobian`)."""
     load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
     for i in range(load_dofs.shape[0]):
+        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
+                load_dofs[i, 4], load_dofs[i, 5])
+        if dofs[0] < 0 and dofs[2] < 0:
+            continue
+        for k in range(2):
+            h22, h23, h24 = _side_hessian(k, dofs, load_u0[i, 0], load_u0[i, 1], q)
+            for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
+                p = load_map[i, j, m]
+                if p >= 0:
+                    data[p] -= cf * bh2 * F[i, k] * h
+
+
+@njit(cache=True)
+def line_load_residual(S, q, wf, F, loads, R):
+    """Subtract ``wf Q_ext`` of the line loads among ``loads`` (int64 indices; point loads have
+    no line entries) from the equation rows of ``R`` (module docstring)."""
+    for i in loads:
+        qx, qy = wf * F[i, 0], wf * F[i, 1]
+        for e in range(S.line_off[i], S.line_off[i + 1]):
+            # Q_R = L q, Q_theta = (AĨ)^T q . (U + N d), Q_d = N^T A^T q (module docstring)
+            el = S.line_elem[e]
+            ref = S.body_ref[S.elem_body[el]]
+            c, s = np.cos(q[ref[2]]), np.sin(q[ref[2]])
+            ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q; (AĨ)^T q = (ay, -ax)
+            mom = ay * S.line_u0[e, 1] - ax * S.line_u0[e, 2]
+            for j in range(6):
+                f = S.elem_fdof[el, j]
+                if f >= 0:
+                    d = S.flex_dof[f]
+                    mom += (ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]) * q[d]
+                    R[d] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
+            R[ref[0]] -= S.line_u0[e, 0] * qx
+            R[ref[1]] -= S.line_u0[e, 0] * qy
+            R[ref[2]] -= mom
+
+
+@njit(cache=True)
+def line_load_jacobian(S, q, cf, bh2, F, data):
+    """Add ``-cf bh2 d(Q_ext)/dq`` of the line loads to ``data`` (positions ``S.line_map``
+    (n_line, 7, 7))."""
+    for i in range(S.line_off.shape[0] - 1):
         qx, qy = cf * bh2 * F[i, 0], cf * bh2 * F[i, 1]
         for e in range(S.line_off[i], S.line_off[i + 1]):
             # dQ_theta/dtheta = -A^T q . (U + N d); dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q
@@ -103,13 +129,3 @@ def load_jacobian(S, q, cf, bh2, F, data):
                         data[m[1 + j, 0]] -= h
             if m[0, 0] >= 0:
                 data[m[0, 0]] += mom
-        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
-                load_dofs[i, 4], load_dofs[i, 5])
-        if dofs[0] < 0 and dofs[2] < 0:
-            continue
-        for k in range(2):
-            h22, h23, h24 = _side_hessian(k, dofs, load_u0[i, 0], load_u0[i, 1], q)
-            for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
-                p = load_map[i, j, m]
-                if p >= 0:
-                    data[p] -= cf * bh2 * F[i, k] * h

@@ -13,7 +13,14 @@ fields come in three groups:
 * the **topology** (int64): DOF numbers of bodies, flexible coordinates, elements, constraint
   rows and loads;
 * the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
-  (``-1``: skipped).
+  (``-1``: skipped);
+* two **switches**, ``slides`` (``True`` when the model has slide rows, the rows of
+  prismatic joints) and ``force_elements`` (``True`` when it has spring-dampers or line loads),
+  each ``None`` otherwise. Numba compiles a kernel for the types of its arguments and drops a
+  branch ``if on is None`` (or ``is not None``) of an argument typed ``None``; the kernels
+  take a switch as an argument (``kernels.joints.constraint_residual(S.slides, S, ...)``,
+  ``kernels.assemble.force_element_residual``), so the code of an item kind is compiled only
+  for models that have it: a shorter first run for every other model.
 
 Array shapes (``morphlab.compile`` fills them; ``docs/theory.md`` §2-§4 the formulation):
 
@@ -54,6 +61,8 @@ con_map_*  ...                  positions of the constraint row, column and Hess
 load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
 spring_map (n_spring, 2,2,6,6)  positions of the spring entries (row side, column side)
 line_map   (n_line, 7, 7)       positions of the line-load entries (theta, then ``d``)
+slides     True or None         whether the model has slide rows (``joints.ROW_SLIDE``)
+force_elements  True or None    whether the model has spring-dampers or line loads
 ========== ==================== =============================================================
 """
 
@@ -106,6 +115,9 @@ class SystemArrays(NamedTuple):
     load_map: np.ndarray
     spring_map: np.ndarray
     line_map: np.ndarray
+    # switches (module docstring)
+    slides: bool | None
+    force_elements: bool | None
 
 
 class DesignArrays(NamedTuple):
@@ -168,4 +180,5 @@ def with_design(S, P, i):
                         S.elem_body, S.elem_fdof, S.con_kind, S.con_dofs, S.load_dofs,
                         S.torque_dofs, S.spring_kind, S.spring_dofs, S.line_off, S.line_elem,
                         S.border_off, S.border_map, S.elem_map, S.con_map_row, S.con_map_col,
-                        S.con_map_H, S.load_map, S.spring_map, S.line_map)
+                        S.con_map_H, S.load_map, S.spring_map, S.line_map, S.slides,
+                        S.force_elements)

@@ -186,8 +186,9 @@ class System:
         dt = np.result_type(self.dtype, q.dtype)
         phi = np.zeros(self.n_con, dtype=dt)
         phid = np.zeros(self.n_con, dtype=dt)
-        kjoints.constraint_values(q.astype(dt), v.astype(dt), c.astype(dt), cd.astype(dt),
-                                  self.con_kind, self.con_dofs, self.con_u0.astype(dt), phi, phid)
+        kjoints.constraint_values(slide_switch(self.con_kind), q.astype(dt), v.astype(dt),
+                                  c.astype(dt), cd.astype(dt), self.con_kind, self.con_dofs,
+                                  self.con_u0.astype(dt), phi, phid)
         return phi, phid
 
     def constraint_matrix(self, q):
@@ -209,9 +210,19 @@ def kernel_arrays(system: System, dtype=None) -> SystemArrays:
     the design data cast to ``dtype`` (default: the system's)."""
     dt = np.dtype(dtype) if dtype is not None else system.dtype
     design = set(DESIGN_FIELDS)
-    return SystemArrays(*(np.ascontiguousarray(getattr(system, name),
-                                               dtype=dt if name in design else None)
-                          for name in SystemArrays._fields))
+    switches = ("slides", "force_elements")
+    arrays = {name: np.ascontiguousarray(getattr(system, name),
+                                         dtype=dt if name in design else None)
+              for name in SystemArrays._fields if name not in switches}
+    forces = arrays["spring_kind"].shape[0] > 0 or arrays["line_elem"].shape[0] > 0
+    return SystemArrays(**arrays, slides=slide_switch(system.con_kind),
+                        force_elements=True if forces else None)
+
+
+def slide_switch(con_kind: np.ndarray) -> bool | None:
+    """The switch ``slides`` of the constraint kernels for the row kinds ``con_kind``: True if
+    there is a slide row, else None (``morphlab.kernels.system``)."""
+    return True if np.any(con_kind == kjoints.ROW_SLIDE) else None
 
 
 class TimeArrays(NamedTuple):

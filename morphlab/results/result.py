@@ -14,7 +14,7 @@ from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
 from ..kernels.assemble import add_residual
 from ..kernels.forces import spring_measures
-from ..kernels.loads import load_residual
+from ..kernels.loads import line_load_residual, load_residual
 from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
@@ -334,8 +334,10 @@ def energy(res: Result) -> dict:
         power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
         # external power: -Q_ext . v from the load kernel alone
         Rl = np.zeros(n, dtype=s.dtype)
-        load_residual(S, q, 1.0, F, T, np.arange(s.load_dofs.shape[0]),
-                      np.arange(s.torque_dofs.shape[0]), Rl)
+        loads = np.arange(s.load_dofs.shape[0])
+        load_residual(S, q, 1.0, F, T, loads, np.arange(s.torque_dofs.shape[0]), Rl)
+        if s.line_elem.shape[0]:
+            line_load_residual(S, q, 1.0, F, loads, Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
         # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
         for b in range(s.body_ref.shape[0]):

@@ -14,6 +14,7 @@ import pathlib
 import numpy as np
 
 from ..compile import System
+from ..compile.system import slide_switch
 from ..errors import ModelError, ResourceError
 from ..kernels.joints import constraint_values, constraint_violation_history
 from .settings import State
@@ -105,8 +106,8 @@ class HistoryStore:
         self.log_offsets[n + 1] = self._rows
         if self.system.n_con and not self._batch:  # else at the end, from the histories
             s = self.system
-            constraint_values(st.q, st.v, ta.c, ta.cd, s.con_kind, s.con_dofs, self._u0,
-                              self._phi, self._phid)
+            constraint_values(slide_switch(s.con_kind), st.q, st.v, ta.c, ta.cd, s.con_kind,
+                              s.con_dofs, self._u0, self._phi, self._phid)
             self.viol[n] = np.max(np.abs(np.real(self._phi)))
             self.vviol[n] = np.max(np.abs(np.real(self._phid)))
         self.n_done = n
@@ -117,7 +118,8 @@ class HistoryStore:
         sl = slice(0, self.n_done + 1)
         if self._batch and self.system.n_con and self.n_done >= 0 and table is not None:
             s = self.system
-            constraint_violation_history(self.arrays["q"][sl], self.arrays["v"][sl],
+            constraint_violation_history(slide_switch(s.con_kind), self.arrays["q"][sl],
+                                         self.arrays["v"][sl],
                                          np.ascontiguousarray(table.C[sl]),
                                          np.ascontiguousarray(table.CD[sl]), s.con_kind,
                                          s.con_dofs, self._u0, self.viol[sl], self.vviol[sl])
