@@ -4,9 +4,10 @@ The system arrays travel as one :class:`~morphlab.kernels.system.SystemArrays` `
 per compiled model by ``morphlab.compile.kernel_arrays``), so a Newton iteration costs one call
 for the residual and one for the matrix, whatever the number of bodies, elements and joints.
 The matrix is written into the ``data`` array of a CSC matrix whose pattern was fixed at
-compile time; every contribution has a precomputed position (``-1``: skipped). The force
-elements (spring-dampers, line loads) go through :func:`force_element_residual` and
-:func:`force_element_jacobian`, compiled empty for a model without them (``S.force_elements``).
+compile time; every contribution has a precomputed position (``-1``: skipped). The applied
+forces (torques, point forces, line loads, spring-dampers) go through :func:`applied_residual`
+and :func:`applied_jacobian`, which compile the code of an item kind only for a model that
+has it (the switches of ``kernels.system``).
 """
 
 import numpy as np
@@ -15,7 +16,13 @@ from numba import njit
 from .ffrf import body_jacobian, body_residual
 from .forces import spring_jacobian, spring_residual
 from .joints import constraint_jacobian, constraint_residual
-from .loads import line_load_jacobian, line_load_residual, load_jacobian, load_residual
+from .loads import (
+    line_load_jacobian,
+    line_load_residual,
+    point_load_jacobian,
+    point_load_residual,
+    torque_residual,
+)
 from .system import all_parts
 
 
@@ -40,29 +47,33 @@ def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, 
     body_residual(S, q, v, a, wm, wf, parts, R)
     constraint_residual(S.slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
                         parts.rows, n_dof, R)
-    load_residual(S, q, wf, F, T, parts.loads, parts.torques, R)
-    force_element_residual(S.force_elements, S, q, v, wf, F, parts.loads, parts.springs, R)
+    applied_residual(S.point_loads, S.force_elements, S, q, v, wf, F, T, parts.loads,
+                     parts.torques, parts.springs, R)
 
 
 @njit(cache=True)
-def force_element_residual(on, S, q, v, wf, F, loads, springs, R):
-    """Add ``wf (Q_s - Q_line)`` of the spring-dampers ``springs`` and of the line loads among
-    ``loads`` to ``R``; nothing if ``on`` (``S.force_elements``) is ``None``: for such a
-    model Numba drops the branch, and the force-element kernels are not compiled."""
-    if on is None:
-        return
-    line_load_residual(S, q, wf, F, loads, R)
-    spring_residual(S, q, v, wf, springs, R)
+def applied_residual(points, forces, S, q, v, wf, F, T, loads, torques, springs, R):
+    """Add ``wf (Q_s - Q_ext)`` of the applied forces to ``R``: the torques ``torques``, the
+    point forces and line loads among ``loads`` and the spring-dampers ``springs`` (int64
+    indices; ``kernels.loads``, ``kernels.forces``). ``points``, ``forces``: the switches
+    ``S.point_loads``, ``S.force_elements``; Numba drops the code of a switch that is None
+    (``kernels.system``)."""
+    torque_residual(S, wf, T, torques, R)
+    if points is not None:
+        point_load_residual(S, q, wf, F, loads, R)
+    if forces is not None:
+        line_load_residual(S, q, wf, F, loads, R)
+        spring_residual(S, q, v, wf, springs, R)
 
 
 @njit(cache=True)
-def force_element_jacobian(on, S, q, v, cf, bh2, gh, F, data):
-    """The Newton-matrix terms of :func:`force_element_residual` (weight ``cf``) into
-    ``data``."""
-    if on is None:
-        return
-    line_load_jacobian(S, q, cf, bh2, F, data)
-    spring_jacobian(S, q, v, cf, bh2, gh, data)
+def applied_jacobian(points, forces, S, q, v, cf, bh2, gh, F, data):
+    """The Newton-matrix terms of :func:`applied_residual` (weight ``cf``) into ``data``."""
+    if points is not None:
+        point_load_jacobian(S, q, cf, bh2, F, data)
+    if forces is not None:
+        line_load_jacobian(S, q, cf, bh2, F, data)
+        spring_jacobian(S, q, v, cf, bh2, gh, data)
 
 
 @njit(cache=True)
@@ -76,8 +87,7 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     data[:] = 0.0
     body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
     constraint_jacobian(S.slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
-    load_jacobian(S, q, cf, bh2, F, data)
-    force_element_jacobian(S.force_elements, S, q, v, cf, bh2, gh, F, data)
+    applied_jacobian(S.point_loads, S.force_elements, S, q, v, cf, bh2, gh, F, data)
 
 
 @njit(cache=True, inline="always")
@@ -112,8 +122,8 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
     body_residual(S, q, v, a, w[0], w[2], parts, R)
     constraint_residual(S.slides, S, q, v, a, lam, w[1], w[3], w[4], scale, b0, b1, c, cd, cdd,
                         parts.rows, n_dof, R)
-    load_residual(S, q, w[2], F, T, parts.loads, parts.torques, R)
-    force_element_residual(S.force_elements, S, q, v, w[2], F, parts.loads, parts.springs, R)
+    applied_residual(S.point_loads, S.force_elements, S, q, v, w[2], F, T, parts.loads,
+                     parts.torques, parts.springs, R)
     ssq = 0.0
     for k in range(R.shape[0]):
         ssq += R[k].real * R[k].real + R[k].imag * R[k].imag
@@ -127,8 +137,7 @@ def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     data[:] = 0.0
     body_jacobian(S, q, v, a, w[0], w[2], bh2, gh, data)
     constraint_jacobian(S.slides, S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1, data)
-    load_jacobian(S, q, w[2], bh2, F, data)
-    force_element_jacobian(S.force_elements, S, q, v, w[2], bh2, gh, F, data)
+    applied_jacobian(S.point_loads, S.force_elements, S, q, v, w[2], bh2, gh, F, data)
 
 
 @njit(cache=True)

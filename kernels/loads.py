@@ -24,27 +24,25 @@ from numba import njit
 from .joints import _side, _side_hessian
 
 
-@njit(cache=True)
-def load_residual(S, q, wf, F, T, loads, torques, R):
-    """Subtract ``wf Q_ext`` of point forces and torques from the equation rows of ``R`` (line
-    loads: :func:`line_load_residual`).
+@njit(cache=True, inline="always")
+def torque_residual(S, wf, T, torques, R):
+    """Subtract ``wf T`` of the torques ``torques`` (int64 indices) from the equation rows of
+    ``R``: each acts on the body angle and on the nodal rotation (``S.torque_dofs``, ``-1``
+    if absent); ``T`` (n_torque,) the values at this time [force·length]."""
+    for i in torques:
+        for j in range(2):
+            d = S.torque_dofs[i, j]
+            if d >= 0:
+                R[d] -= wf * T[i]
 
-    Parameters
-    ----------
-    S : SystemArrays
-        ``S.load_dofs``, ``S.load_u0``: the point of application of each point load (same
-        description as a constraint side); ``S.torque_dofs``: the DOF of the body angle and
-        of the nodal rotation (``-1`` if absent) each torque acts on.
-    F : (n_load, 2)
-        Global force vector of each point load [force], or line load [force/length], at this
-        time.
-    T : (n_torque,)
-        Torque values at this time [force·length].
-    loads, torques : int64 arrays
-        The loads and torques evaluated (all, or those a design variable changes; the line
-        loads among them are skipped).
-    """
-    load_dofs, load_u0, torque_dofs = S.load_dofs, S.load_u0, S.torque_dofs
+
+@njit(cache=True, inline="always")
+def point_load_residual(S, q, wf, F, loads, R):
+    """Subtract ``wf Q_ext`` of the point forces among ``loads`` (int64 indices; line loads are
+    skipped) from the equation rows of ``R``. ``S.load_dofs``, ``S.load_u0``: the point of
+    application of each load (described as a constraint side); ``F`` (n_load, 2): the global
+    force of each point load [force], or line load [force/length], at this time."""
+    load_dofs, load_u0 = S.load_dofs, S.load_u0
     for i in loads:
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
                 load_dofs[i, 4], load_dofs[i, 5])
@@ -55,17 +53,12 @@ def load_residual(S, q, wf, F, T, loads, torques, R):
             for j in range(6):
                 if dofs[j] >= 0:
                     R[dofs[j]] -= wf * grad[j] * F[i, k]
-    for i in torques:
-        for j in range(2):
-            d = torque_dofs[i, j]
-            if d >= 0:
-                R[d] -= wf * T[i]
 
 
-@njit(cache=True)
-def load_jacobian(S, q, cf, bh2, F, data):
+@njit(cache=True, inline="always")
+def point_load_jacobian(S, q, cf, bh2, F, data):
     """Add ``-cf bh2 d(Q_ext)/dq`` of the point forces to ``data`` (positions ``S.load_map``
-    (n_load, 6, 6); line loads: :func:`line_load_jacobian`)."""
+    (n_load, 6, 6))."""
     load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
     for i in range(load_dofs.shape[0]):
         dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
@@ -80,7 +73,7 @@ def load_jacobian(S, q, cf, bh2, F, data):
                     data[p] -= cf * bh2 * F[i, k] * h
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def line_load_residual(S, q, wf, F, loads, R):
     """Subtract ``wf Q_ext`` of the line loads among ``loads`` (int64 indices; point loads have
     no line entries) from the equation rows of ``R`` (module docstring)."""
@@ -104,7 +97,7 @@ def line_load_residual(S, q, wf, F, loads, R):
             R[ref[2]] -= mom
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def line_load_jacobian(S, q, cf, bh2, F, data):
     """Add ``-cf bh2 d(Q_ext)/dq`` of the line loads to ``data`` (positions ``S.line_map``
     (n_line, 7, 7))."""

@@ -14,13 +14,15 @@ fields come in three groups:
   rows and loads;
 * the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
   (``-1``: skipped);
-* two **switches**, ``slides`` (``True`` when the model has slide rows, the rows of
-  prismatic joints) and ``force_elements`` (``True`` when it has spring-dampers or line loads),
-  each ``None`` otherwise. Numba compiles a kernel for the types of its arguments and drops a
-  branch ``if on is None`` (or ``is not None``) of an argument typed ``None``; the kernels
-  take a switch as an argument (``kernels.joints.constraint_residual(S.slides, S, ...)``,
-  ``kernels.assemble.force_element_residual``), so the code of an item kind is compiled only
-  for models that have it: a shorter first run for every other model.
+* three **switches**, ``slides`` (``True`` when the model has slide rows, the rows of
+  prismatic joints), ``point_loads`` (``True`` when it has point forces) and
+  ``force_elements`` (``True`` when it has spring-dampers or line loads), each ``None``
+  otherwise. Numba compiles a kernel for the types of its arguments and drops a branch
+  ``if on is None`` (or ``is not None``) of an argument typed ``None``. The kernels take a
+  switch as an argument (``kernels.joints.constraint_residual(S.slides, S, ...)``,
+  ``kernels.assemble.applied_residual(S.point_loads, S.force_elements, S, ...)``), so the
+  code of an item kind is compiled only for models that have it: a shorter first run for
+  every other model.
 
 Array shapes (``morphlab.compile`` fills them; ``docs/theory.md`` §2-§4 the formulation):
 
@@ -62,6 +64,7 @@ load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
 spring_map (n_spring, 2,2,6,6)  positions of the spring entries (row side, column side)
 line_map   (n_line, 7, 7)       positions of the line-load entries (theta, then ``d``)
 slides     True or None         whether the model has slide rows (``joints.ROW_SLIDE``)
+point_loads  True or None       whether the model has point forces
 force_elements  True or None    whether the model has spring-dampers or line loads
 ========== ==================== =============================================================
 """
@@ -117,6 +120,7 @@ class SystemArrays(NamedTuple):
     line_map: np.ndarray
     # switches (module docstring)
     slides: bool | None
+    point_loads: bool | None
     force_elements: bool | None
 
 
@@ -181,4 +185,4 @@ def with_design(S, P, i):
                         S.torque_dofs, S.spring_kind, S.spring_dofs, S.line_off, S.line_elem,
                         S.border_off, S.border_map, S.elem_map, S.con_map_row, S.con_map_col,
                         S.con_map_H, S.load_map, S.spring_map, S.line_map, S.slides,
-                        S.force_elements)
+                        S.point_loads, S.force_elements)

@@ -210,12 +210,15 @@ def kernel_arrays(system: System, dtype=None) -> SystemArrays:
     the design data cast to ``dtype`` (default: the system's)."""
     dt = np.dtype(dtype) if dtype is not None else system.dtype
     design = set(DESIGN_FIELDS)
-    switches = ("slides", "force_elements")
+    switches = ("slides", "point_loads", "force_elements")
     arrays = {name: np.ascontiguousarray(getattr(system, name),
                                          dtype=dt if name in design else None)
               for name in SystemArrays._fields if name not in switches}
     forces = arrays["spring_kind"].shape[0] > 0 or arrays["line_elem"].shape[0] > 0
+    ld = arrays["load_dofs"]
+    points = bool(np.any((ld[:, 0] >= 0) | (ld[:, 2] >= 0)))  # line loads have no point
     return SystemArrays(**arrays, slides=slide_switch(system.con_kind),
+                        point_loads=True if points else None,
                         force_elements=True if forces else None)
 
 

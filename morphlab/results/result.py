@@ -12,9 +12,8 @@ import numpy as np
 
 from ..compile.system import System, kernel_arrays, time_table
 from ..errors import ModelError
-from ..kernels.assemble import add_residual
+from ..kernels.assemble import add_residual, applied_residual
 from ..kernels.forces import spring_measures
-from ..kernels.loads import line_load_residual, load_residual
 from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
@@ -316,6 +315,7 @@ def energy(res: Result) -> dict:
     power_ext = np.zeros(n_t)
     power_damp = np.zeros(n_t)
     ed = s.elem_dofs
+    no_springs = np.zeros(0, dtype=np.int64)
     table = time_table(s, res.t) if n_t else ()
     for i in range(n_t):
         q, v = res.q[i], res.v[i]
@@ -332,12 +332,11 @@ def energy(res: Result) -> dict:
         strain[i] = 0.5 * np.real(np.sum(d * Kd))
         beta = s.body_damp[s.elem_body]
         power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
-        # external power: -Q_ext . v from the load kernel alone
+        # external power: -Q_ext . v from the load kernels alone (the springs: _spring_energy)
         Rl = np.zeros(n, dtype=s.dtype)
         loads = np.arange(s.load_dofs.shape[0])
-        load_residual(S, q, 1.0, F, T, loads, np.arange(s.torque_dofs.shape[0]), Rl)
-        if s.line_elem.shape[0]:
-            line_load_residual(S, q, 1.0, F, loads, Rl)
+        applied_residual(S.point_loads, S.force_elements, S, q, v, 1.0, F, T, loads,
+                         np.arange(s.torque_dofs.shape[0]), no_springs, Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
         # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
         for b in range(s.body_ref.shape[0]):
