@@ -13,9 +13,9 @@ the direct and adjoint methods against the whole-run complex step.
 import numpy as np
 import pytest
 from models import E_AL, RHO_AL, check_step_matrix_by_complex_step, straight_nodes
-from morphlab.kernels import beam as kbeam
 
 import morphlab as ml
+from morphlab.compile import beam as kbeam
 from morphlab.compile.forces import line_integrals
 
 

@@ -1,4 +1,4 @@
-"""Element kernels of ``morphlab.kernels.beam`` against independent NumPy references.
+"""Element functions of ``morphlab.compile.beam`` against independent NumPy references.
 
 References
 ----------
@@ -15,7 +15,8 @@ References
 
 import numpy as np
 import pytest
-from morphlab.kernels import beam as kb
+
+from morphlab.compile import beam as kb
 
 EPS = np.finfo(float).eps
 

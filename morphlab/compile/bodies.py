@@ -12,11 +12,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import beam as kbeam
 from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
 from ..model import Beam, RigidBody
 from ..model.frames import holding_frame, specs_of
 from . import incremental as inc
+from .beam import beam_element_arrays
 from .builder import Builder, compiles
 from .system import BodyInfo
 
@@ -214,7 +214,7 @@ def _compile_frame(body: Beam, spec, name: str, b: Builder):
 
 def _element_arrays(body: Beam, Xb, conn, dt, rows: slice):
     """Invariants, matrices and stress maps of the elements ``rows`` of ``body`` (their nodes
-    ``Xb`` in their frame): ``(scal (4,), IS, I0S, I0IS, M, St, K, B)`` (kernels.beam)."""
+    ``Xb`` in their frame): ``(scal (4,), IS, I0S, I0IS, M, St, K, B)`` (:mod:`.beam`)."""
     n_el = conn.shape[0]
     ones = np.ones(n_el, dtype=dt)
 
@@ -229,7 +229,7 @@ def _element_arrays(body: Beam, Xb, conn, dt, rows: slice):
     Se = np.zeros((n_el, 6, 6), dtype=dt)
     Ke = np.zeros((n_el, 6, 6), dtype=dt)
     Be = np.zeros((n_el, 2, 2, 6), dtype=dt)
-    kbeam.beam_element_arrays(
+    beam_element_arrays(
         np.ascontiguousarray(Xb, dtype=dt), conn,
         ones * part(body.rho * body.area), ones * part(body.E * body.area),
         ones * part(body.E * body.second_moment), ones * part(body.E), ones * part(body.fibre),
