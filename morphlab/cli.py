@@ -13,8 +13,10 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 
 from .errors import MorphlabError, SolverError
 
@@ -101,7 +103,7 @@ def _publish(staging: str, out: str) -> None:
     os.rmdir(staging)
 
 
-def _morphing(args) -> str:
+def _morphing(args, interrupts: _Interrupts) -> str:
     from .morphing import leading_edge as morphing
 
     overrides = _overrides(args.set)
@@ -111,10 +113,48 @@ def _morphing(args) -> str:
         report = morphing.study(out=staging, overrides=overrides, quick=args.quick,
                                 figures=not args.no_figures, timing=not args.no_timing,
                                 progress=args.progress)
+        interrupts.check()
         _publish(staging, args.out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return str(report)
+
+
+class _Interrupts:
+    """Ctrl-C recorded as well as raised, while the command runs: Python drops an exception
+    raised inside a weakref or import-lock callback (it prints "Exception ignored in ..."), so
+    an interrupt landing there would be lost and the study would publish its output;
+    :meth:`check` raises it before anything is published. The report of such a dropped
+    interrupt is silenced (the command reports the interrupt in its one line)."""
+
+    def __init__(self):
+        self.seen = 0
+        self._previous = None
+        self._hook = None
+
+    def _handle(self, signum, frame):
+        self.seen += 1
+        raise KeyboardInterrupt
+
+    def _unraisable(self, report) -> None:
+        if not isinstance(report.exc_value, KeyboardInterrupt):
+            self._hook(report)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            sys.unraisablehook = self._hook
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if an interrupt arrived (even one that was swallowed)."""
+        if self.seen:
+            raise KeyboardInterrupt
 
 
 def _interrupted(exc: BaseException) -> bool:
@@ -133,14 +173,16 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``morphlab`` command; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        if args.command == "warmup":
-            from .warmup import warmup
+        with _Interrupts() as interrupts:
+            if args.command == "warmup":
+                from .warmup import warmup
 
-            warmup()
-            print("morphlab: kernels compiled")
+                warmup()
+                interrupts.check()
+                print("morphlab: kernels compiled")
+                return 0
+            print(_morphing(args, interrupts))
             return 0
-        print(_morphing(args))
-        return 0
     except BaseException as exc:
         if isinstance(exc, SystemExit) or (args.traceback and not _interrupted(exc)):
             raise
