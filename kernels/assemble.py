@@ -6,8 +6,8 @@ for the residual and one for the matrix, whatever the number of bodies, elements
 The matrix is written into the ``data`` array of a CSC matrix whose pattern was fixed at
 compile time; every contribution has a precomputed position (``-1``: skipped). The applied
 forces (torques, point forces, line loads, spring-dampers) go through :func:`applied_residual`
-and :func:`applied_jacobian`, which compile the code of an item kind only for a model that
-has it (the switches of ``kernels.system``).
+and :func:`applied_jacobian`, which compile all but the torques only for a model with extra
+items (the switch ``S.extra_items`` of ``kernels.system``).
 """
 
 import numpy as np
@@ -45,33 +45,30 @@ def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, 
     the sensitivity pseudo-loads evaluate the parts a design variable changes
     (``morphlab.kernels.direct``)."""
     body_residual(S, q, v, a, wm, wf, parts, R)
-    constraint_residual(S.slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
+    constraint_residual(S.extra_items, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd,
                         parts.rows, n_dof, R)
-    applied_residual(S.point_loads, S.force_elements, S, q, v, wf, F, T, parts.loads,
-                     parts.torques, parts.springs, R)
+    applied_residual(S.extra_items, S, q, v, wf, F, T, parts.loads, parts.torques,
+                     parts.springs, R)
 
 
 @njit(cache=True)
-def applied_residual(points, forces, S, q, v, wf, F, T, loads, torques, springs, R):
+def applied_residual(extra, S, q, v, wf, F, T, loads, torques, springs, R):
     """Add ``wf (Q_s - Q_ext)`` of the applied forces to ``R``: the torques ``torques``, the
     point forces and line loads among ``loads`` and the spring-dampers ``springs`` (int64
-    indices; ``kernels.loads``, ``kernels.forces``). ``points``, ``forces``: the switches
-    ``S.point_loads``, ``S.force_elements``; Numba drops the code of a switch that is None
-    (``kernels.system``)."""
+    indices; ``kernels.loads``, ``kernels.forces``). ``extra``: the switch ``S.extra_items``;
+    Numba drops the code of all but the torques when it is None (``kernels.system``)."""
     torque_residual(S, wf, T, torques, R)
-    if points is not None:
+    if extra is not None:
         point_load_residual(S, q, wf, F, loads, R)
-    if forces is not None:
         line_load_residual(S, q, wf, F, loads, R)
         spring_residual(S, q, v, wf, springs, R)
 
 
 @njit(cache=True)
-def applied_jacobian(points, forces, S, q, v, cf, bh2, gh, F, data):
+def applied_jacobian(extra, S, q, v, cf, bh2, gh, F, data):
     """The Newton-matrix terms of :func:`applied_residual` (weight ``cf``) into ``data``."""
-    if points is not None:
+    if extra is not None:
         point_load_jacobian(S, q, cf, bh2, F, data)
-    if forces is not None:
         line_load_jacobian(S, q, cf, bh2, F, data)
         spring_jacobian(S, q, v, cf, bh2, gh, data)
 
@@ -86,8 +83,8 @@ def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F
     """
     data[:] = 0.0
     body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
-    constraint_jacobian(S.slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
-    applied_jacobian(S.point_loads, S.force_elements, S, q, v, cf, bh2, gh, F, data)
+    constraint_jacobian(S.extra_items, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
+    applied_jacobian(S.extra_items, S, q, v, cf, bh2, gh, F, data)
 
 
 @njit(cache=True, inline="always")
@@ -120,10 +117,10 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
         R[k] = R_hist[k]
     parts = all_parts(S)
     body_residual(S, q, v, a, w[0], w[2], parts, R)
-    constraint_residual(S.slides, S, q, v, a, lam, w[1], w[3], w[4], scale, b0, b1, c, cd, cdd,
+    constraint_residual(S.extra_items, S, q, v, a, lam, w[1], w[3], w[4], scale, b0, b1, c, cd, cdd,
                         parts.rows, n_dof, R)
-    applied_residual(S.point_loads, S.force_elements, S, q, v, w[2], F, T, parts.loads,
-                     parts.torques, parts.springs, R)
+    applied_residual(S.extra_items, S, q, v, w[2], F, T, parts.loads, parts.torques,
+                     parts.springs, R)
     ssq = 0.0
     for k in range(R.shape[0]):
         ssq += R[k].real * R[k].real + R[k].imag * R[k].imag
@@ -136,8 +133,9 @@ def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, qh.shape[0])
     data[:] = 0.0
     body_jacobian(S, q, v, a, w[0], w[2], bh2, gh, data)
-    constraint_jacobian(S.slides, S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1, data)
-    applied_jacobian(S.point_loads, S.force_elements, S, q, v, w[2], bh2, gh, F, data)
+    constraint_jacobian(S.extra_items, S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1,
+                        data)
+    applied_jacobian(S.extra_items, S, q, v, w[2], bh2, gh, F, data)
 
 
 @njit(cache=True)

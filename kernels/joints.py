@@ -12,9 +12,9 @@ Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 
   ``n(psi) . (r_P - r_Q)`` with ``n = (cos psi, sin psi)`` and ``psi = theta_Q + phi_Q + beta``
   (``beta`` the normal's angle in Q's frame): the row of a prismatic joint that keeps P on the
   guide. Unlike the other kinds it couples both sides (its Hessian has P-Q blocks). Its code
-  is compiled only for models that have slide rows: the kernels take the switch ``S.slides``
-  (``True``, or ``None`` for a model without them) as an argument, and Numba drops a branch
-  ``if slides is not None`` for an argument typed ``None`` (``kernels.system``).
+  is compiled only for models with extra items: the kernels take the switch
+  ``S.extra_items`` (``True``, or ``None``) as the argument ``extra``, and Numba drops a
+  branch ``if extra is not None`` for an argument typed ``None`` (``kernels.system``).
 
 A side (P or Q) is described by the global DOFs ``(R_x, R_y, theta, u, v, phi)`` of its point
 (``-1`` where absent; all ``-1`` for the ground), its body-frame position ``u0[0:2]`` and an
@@ -274,12 +274,18 @@ def _point_side(kind, dofs, u, q, v, a):
     return _side(kind, dofs, u[0], u[1], q, v, a)
 
 
-@njit(cache=True, inline="always")
-def _row(kind, slides, dofs0, dofs1, u0, u1, q, v, a):
+@njit(cache=True)
+def _row_of(kind, extra, dofs0, dofs1, u0, u1, q, v, a):
     """``(g, vHv, grad, Hv, Ha, dvHv)`` of one row of any kind, signs applied, the last four as
-    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`). ``slides``: the
-    switch ``S.slides`` (module docstring), an argument of every compiled caller."""
-    if slides is not None:
+    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`). ``extra``: the
+    switch ``S.extra_items`` (module docstring), an argument of every compiled caller.
+
+    A called function, not inlined, for every kernel that reads rows (residual, Newton matrix,
+    violation diagnostics): Numba types an inlined row anew in each kernel, which was the
+    largest share of a cold start. The residual, which needs only ``g``, ``vHv`` and ``grad``,
+    pays for computing the whole row: about 2 µs of a 28 µs residual of the morphing model,
+    against 6 s less compilation (``BENCHMARKS.md``)."""
+    if extra is not None:
         if kind == ROW_SLIDE:
             return _slide(dofs0, dofs1, u0, u1, q, v, a)
     g0, vHv0, gr0, Hv0, Ha0, dv0 = _point_side(kind, dofs0, u0, q, v, a)
@@ -288,30 +294,21 @@ def _row(kind, slides, dofs0, dofs1, u0, u1, q, v, a):
             (dv0, _neg(dv1)))
 
 
-@njit(cache=True)
-def _row_of(kind, slides, dofs0, dofs1, u0, u1, q, v, a):
-    """:func:`_row` as a called function, for the Newton matrix and the violation diagnostics:
-    the residual inlines the row (it runs every Newton iteration and needs only ``g``, ``vHv``
-    and ``grad``); compiling the whole row inline into every kernel that reads it was the
-    largest share of a cold start."""
-    return _row(kind, slides, dofs0, dofs1, u0, u1, q, v, a)
-
-
 @njit(cache=True, inline="always")
 def _u(con_u0, i, side):
     return (con_u0[i, side, 0], con_u0[i, side, 1], con_u0[i, side, 2])
 
 
 @njit(cache=True)
-def constraint_residual(slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows,
+def constraint_residual(extra, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows,
                         n_dof, R):
     """Add ``wl J^T lam`` to the equation rows and ``scale (wcm J a - wcf F_c)`` to the
     constraint rows ``R[n_dof + i]``.
 
     Parameters
     ----------
-    slides : True or None
-        ``S.slides`` (module docstring).
+    extra : True or None
+        ``S.extra_items`` (module docstring).
     lam : (n_con,)
         Physical Lagrange multipliers.
     c, cd, cdd : (n_con,)
@@ -327,8 +324,8 @@ def constraint_residual(slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c,
     zero = R[0] * 0.0
     for i in rows:
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, vHv, grad, _, _, _ = _row(con_kind[i], slides, dofs[0], dofs[1], _u(con_u0, i, 0),
-                                     _u(con_u0, i, 1), q, v, a)
+        g, vHv, grad, _, _, _ = _row_of(con_kind[i], extra, dofs[0], dofs[1], _u(con_u0, i, 0),
+                                        _u(con_u0, i, 1), q, v, a)
         Ja = zero
         Jv = zero
         for side in range(2):
@@ -343,9 +340,9 @@ def constraint_residual(slides, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c,
 
 
 @njit(cache=True)
-def constraint_jacobian(slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
+def constraint_jacobian(extra, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
     """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC ``data``
-    (``slides``: ``S.slides``, module docstring).
+    (``extra``: ``S.extra_items``, module docstring).
 
     ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
     ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
@@ -358,7 +355,7 @@ def constraint_jacobian(slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b
         kind = con_kind[i]
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
         u = (_u(con_u0, i, 0), _u(con_u0, i, 1))
-        _, _, grad, Hv, Ha, dvHv = _row_of(kind, slides, dofs[0], dofs[1], u[0], u[1], q, v, a)
+        _, _, grad, Hv, Ha, dvHv = _row_of(kind, extra, dofs[0], dofs[1], u[0], u[1], q, v, a)
         for side in range(2):
             for j in range(6):
                 if dofs[side][j] < 0:
@@ -375,7 +372,7 @@ def constraint_jacobian(slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b
                 if p >= 0:
                     data[p] += cl * scale * gr
         coef = cl * bh2 * lam[i]
-        if slides is not None:
+        if extra is not None:
             if kind == ROW_SLIDE:
                 _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, data)
                 continue
@@ -388,14 +385,14 @@ def constraint_jacobian(slides, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b
 
 
 @njit(cache=True)
-def constraint_values(slides, q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
+def constraint_values(extra, q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
     """Position- and velocity-level violation of every row: ``phi = g - c``,
-    ``phid = J q' - c'`` (each (n_con,), out; ``slides``: True if ``con_kind`` has slide rows,
-    else None)."""
+    ``phid = J q' - c'`` (each (n_con,), out; ``extra``: ``S.extra_items``, which must be True if
+    ``con_kind`` has slide rows)."""
     zero = q[0] * 0.0
     for i in range(con_kind.shape[0]):
         dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, _, grad, _, _, _ = _row_of(con_kind[i], slides, dofs[0], dofs[1], _u(con_u0, i, 0),
+        g, _, grad, _, _, _ = _row_of(con_kind[i], extra, dofs[0], dofs[1], _u(con_u0, i, 0),
                                       _u(con_u0, i, 1), q, v, v)
         Jv = zero
         for side in range(2):
@@ -407,8 +404,8 @@ def constraint_values(slides, q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid
 
 
 @njit(cache=True)
-def constraint_violation_history(slides, Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
-    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call (``slides``: as for
+def constraint_violation_history(extra, Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
+    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call (``extra``: as for
     :func:`constraint_values`).
 
     ``Q, V`` (n_t, n_dof); ``C, CD`` (n_t, n_con) constraint targets; ``viol, vviol`` (n_t,),
@@ -417,7 +414,7 @@ def constraint_violation_history(slides, Q, V, C, CD, con_kind, con_dofs, con_u0
     phi = np.zeros(n_con, dtype=Q.dtype)
     phid = np.zeros(n_con, dtype=Q.dtype)
     for k in range(Q.shape[0]):
-        constraint_values(slides, Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
+        constraint_values(extra, Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
         m0 = 0.0
         m1 = 0.0
         for i in range(n_con):

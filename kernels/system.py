@@ -14,15 +14,16 @@ fields come in three groups:
   rows and loads;
 * the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
   (``-1``: skipped);
-* three **switches**, ``slides`` (``True`` when the model has slide rows, the rows of
-  prismatic joints), ``point_loads`` (``True`` when it has point forces) and
-  ``force_elements`` (``True`` when it has spring-dampers or line loads), each ``None``
-  otherwise. Numba compiles a kernel for the types of its arguments and drops a branch
-  ``if on is None`` (or ``is not None``) of an argument typed ``None``. The kernels take a
-  switch as an argument (``kernels.joints.constraint_residual(S.slides, S, ...)``,
-  ``kernels.assemble.applied_residual(S.point_loads, S.force_elements, S, ...)``), so the
-  code of an item kind is compiled only for models that have it: a shorter first run for
-  every other model.
+* one **switch**, ``extra_items``: ``True`` when the model has items beyond bodies, the
+  point joints (revolute, weld, fix, driving constraints) and torques — prismatic joints, point
+  forces, spring-dampers or line loads — and ``None`` otherwise. Numba compiles a kernel for
+  the types of its arguments and drops a branch ``if extra is not None`` of an argument typed
+  ``None``. The kernels take the switch as an argument
+  (``kernels.joints.constraint_residual(S.extra_items, S, ...)``,
+  ``kernels.assemble.applied_residual``), so the code of those items is compiled only for
+  models that have some: a shorter first run for the others, such as the morphing leading
+  edge. One switch, not one per kind: each combination of switches is a separate compilation
+  of every kernel.
 
 Array shapes (``morphlab.compile`` fills them; ``docs/theory.md`` §2-§4 the formulation):
 
@@ -63,9 +64,8 @@ con_map_*  ...                  positions of the constraint row, column and Hess
 load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
 spring_map (n_spring, 2,2,6,6)  positions of the spring entries (row side, column side)
 line_map   (n_line, 7, 7)       positions of the line-load entries (theta, then ``d``)
-slides     True or None         whether the model has slide rows (``joints.ROW_SLIDE``)
-point_loads  True or None       whether the model has point forces
-force_elements  True or None    whether the model has spring-dampers or line loads
+extra_items  True or None       whether the model has slide rows, point forces, spring-dampers
+                                or line loads
 ========== ==================== =============================================================
 """
 
@@ -118,10 +118,8 @@ class SystemArrays(NamedTuple):
     load_map: np.ndarray
     spring_map: np.ndarray
     line_map: np.ndarray
-    # switches (module docstring)
-    slides: bool | None
-    point_loads: bool | None
-    force_elements: bool | None
+    # switch (module docstring)
+    extra_items: bool | None
 
 
 class DesignArrays(NamedTuple):
@@ -184,5 +182,4 @@ def with_design(S, P, i):
                         S.elem_body, S.elem_fdof, S.con_kind, S.con_dofs, S.load_dofs,
                         S.torque_dofs, S.spring_kind, S.spring_dofs, S.line_off, S.line_elem,
                         S.border_off, S.border_map, S.elem_map, S.con_map_row, S.con_map_col,
-                        S.con_map_H, S.load_map, S.spring_map, S.line_map, S.slides,
-                        S.point_loads, S.force_elements)
+                        S.con_map_H, S.load_map, S.spring_map, S.line_map, S.extra_items)

@@ -186,7 +186,7 @@ class System:
         dt = np.result_type(self.dtype, q.dtype)
         phi = np.zeros(self.n_con, dtype=dt)
         phid = np.zeros(self.n_con, dtype=dt)
-        kjoints.constraint_values(slide_switch(self.con_kind), q.astype(dt), v.astype(dt),
+        kjoints.constraint_values(extra_items(self), q.astype(dt), v.astype(dt),
                                   c.astype(dt), cd.astype(dt), self.con_kind, self.con_dofs,
                                   self.con_u0.astype(dt), phi, phid)
         return phi, phid
@@ -210,22 +210,19 @@ def kernel_arrays(system: System, dtype=None) -> SystemArrays:
     the design data cast to ``dtype`` (default: the system's)."""
     dt = np.dtype(dtype) if dtype is not None else system.dtype
     design = set(DESIGN_FIELDS)
-    switches = ("slides", "point_loads", "force_elements")
     arrays = {name: np.ascontiguousarray(getattr(system, name),
                                          dtype=dt if name in design else None)
-              for name in SystemArrays._fields if name not in switches}
-    forces = arrays["spring_kind"].shape[0] > 0 or arrays["line_elem"].shape[0] > 0
-    ld = arrays["load_dofs"]
-    points = bool(np.any((ld[:, 0] >= 0) | (ld[:, 2] >= 0)))  # line loads have no point
-    return SystemArrays(**arrays, slides=slide_switch(system.con_kind),
-                        point_loads=True if points else None,
-                        force_elements=True if forces else None)
+              for name in SystemArrays._fields if name != "extra_items"}
+    return SystemArrays(**arrays, extra_items=extra_items(system))
 
 
-def slide_switch(con_kind: np.ndarray) -> bool | None:
-    """The switch ``slides`` of the constraint kernels for the row kinds ``con_kind``: True if
-    there is a slide row, else None (``morphlab.kernels.system``)."""
-    return True if np.any(con_kind == kjoints.ROW_SLIDE) else None
+def extra_items(system: System) -> bool | None:
+    """The switch ``extra_items`` of the kernels (``morphlab.kernels.system``): True if the
+    system has slide rows, point forces, spring-dampers or line loads, else None."""
+    points = (system.load_dofs[:, 0] >= 0) | (system.load_dofs[:, 2] >= 0)  # line loads: -1
+    extra = (np.any(system.con_kind == kjoints.ROW_SLIDE) or np.any(points)
+             or system.spring_kind.shape[0] > 0 or system.line_elem.shape[0] > 0)
+    return True if extra else None
 
 
 class TimeArrays(NamedTuple):

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compile.system import slide_switch
+from ..compile.system import extra_items
 from ..errors import ModelError
 from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y, constraint_values
 
@@ -161,9 +161,9 @@ def drive_power_total(result) -> np.ndarray:
     phi = np.zeros(s.n_con, dtype=s.dtype)
     Jv = np.zeros(s.n_con, dtype=s.dtype)
     u0 = np.ascontiguousarray(s.con_u0)
-    slides = slide_switch(s.con_kind)
+    extra = extra_items(s)
     for k in range(result.n_t):
-        constraint_values(slides, result.q[k], result.v[k], C, C, s.con_kind, s.con_dofs, u0,
+        constraint_values(extra, result.q[k], result.v[k], C, C, s.con_kind, s.con_dofs, u0,
                           phi, Jv)
         out[k] = -np.real(np.sum(result.lam[k, driven] * Jv[driven]))
     return out

@@ -335,7 +335,7 @@ def energy(res: Result) -> dict:
         # external power: -Q_ext . v from the load kernels alone (the springs: _spring_energy)
         Rl = np.zeros(n, dtype=s.dtype)
         loads = np.arange(s.load_dofs.shape[0])
-        applied_residual(S.point_loads, S.force_elements, S, q, v, 1.0, F, T, loads,
+        applied_residual(S.extra_items, S, q, v, 1.0, F, T, loads,
                          np.arange(s.torque_dofs.shape[0]), no_springs, Rl)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
         # gravity potential: -m g . r_cm, r_cm = R + A c_u / m

@@ -14,7 +14,7 @@ import pathlib
 import numpy as np
 
 from ..compile import System
-from ..compile.system import slide_switch
+from ..compile.system import extra_items
 from ..errors import ModelError, ResourceError
 from ..kernels.joints import constraint_values, constraint_violation_history
 from .settings import State
@@ -79,6 +79,7 @@ class HistoryStore:
         self._phi = np.zeros(system.n_con, dtype=system.dtype)
         self._phid = np.zeros(system.n_con, dtype=system.dtype)
         self._u0 = np.ascontiguousarray(system.con_u0)
+        self._extra = extra_items(system)
         self._batch = "q" in store and "v" in store  # violations from the kept histories
         self.n_done = -1
 
@@ -106,7 +107,7 @@ class HistoryStore:
         self.log_offsets[n + 1] = self._rows
         if self.system.n_con and not self._batch:  # else at the end, from the histories
             s = self.system
-            constraint_values(slide_switch(s.con_kind), st.q, st.v, ta.c, ta.cd, s.con_kind,
+            constraint_values(self._extra, st.q, st.v, ta.c, ta.cd, s.con_kind,
                               s.con_dofs, self._u0, self._phi, self._phid)
             self.viol[n] = np.max(np.abs(np.real(self._phi)))
             self.vviol[n] = np.max(np.abs(np.real(self._phid)))
@@ -118,7 +119,7 @@ class HistoryStore:
         sl = slice(0, self.n_done + 1)
         if self._batch and self.system.n_con and self.n_done >= 0 and table is not None:
             s = self.system
-            constraint_violation_history(slide_switch(s.con_kind), self.arrays["q"][sl],
+            constraint_violation_history(self._extra, self.arrays["q"][sl],
                                          self.arrays["v"][sl],
                                          np.ascontiguousarray(table.C[sl]),
                                          np.ascontiguousarray(table.CD[sl]), s.con_kind,
