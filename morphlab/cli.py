@@ -13,10 +13,8 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import signal
 import sys
 import tempfile
-import threading
 
 from .errors import MorphlabError, SolverError
 
@@ -121,38 +119,32 @@ def _morphing(args, interrupts: _Interrupts) -> str:
 
 
 class _Interrupts:
-    """Ctrl-C recorded as well as raised, while the command runs: Python drops an exception
-    raised inside a weakref or import-lock callback (it prints "Exception ignored in ..."), so
-    an interrupt landing there would be lost and the study would publish its output;
-    :meth:`check` raises it before anything is published. The report of such a dropped
-    interrupt is silenced (the command reports the interrupt in its one line)."""
+    """Ctrl-C that Python drops, recorded: an interrupt landing in a weakref or import-lock
+    callback is reported as "Exception ignored in ..." and lost, and the study would go on
+    and publish its output. While the command runs, such a report of a KeyboardInterrupt is
+    recorded instead of printed, and :meth:`check` raises it before anything is published.
+    (The SIGINT handler itself stays Python's, which the time loop relies on to stop between
+    steps.)"""
 
     def __init__(self):
         self.seen = 0
-        self._previous = None
         self._hook = None
 
-    def _handle(self, signum, frame):
-        self.seen += 1
-        raise KeyboardInterrupt
-
     def _unraisable(self, report) -> None:
-        if not isinstance(report.exc_value, KeyboardInterrupt):
+        if isinstance(report.exc_value, KeyboardInterrupt):
+            self.seen += 1
+        else:
             self._hook(report)
 
     def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-            self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
+        self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
 
     def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            sys.unraisablehook = self._hook
+        sys.unraisablehook = self._hook
 
     def check(self) -> None:
-        """Raise KeyboardInterrupt if an interrupt arrived (even one that was swallowed)."""
+        """Raise KeyboardInterrupt if an interrupt was dropped."""
         if self.seen:
             raise KeyboardInterrupt
 

@@ -79,6 +79,34 @@ def test_failures_while_computing_give_one_line_and_leave_nothing(tmp_path, monk
             cli.main(["--traceback", "morphing", "--out", str(tmp_path / "out")])
 
 
+def test_an_interrupt_python_drops_still_stops_the_command(tmp_path, monkeypatch, capsys):
+    """A KeyboardInterrupt raised in a weakref callback (as a SIGINT landing in an import
+    lock's callback is) is dropped by Python, and the study returns normally: the command still
+    exits 130 with one line and publishes nothing."""
+    import gc
+    import weakref
+
+    class Lock:
+        pass
+
+    def dropped(ref):
+        raise KeyboardInterrupt
+
+    def study(out, **kw):
+        (__import__("pathlib").Path(out) / "morphing.json").write_text("finished")
+        lock = Lock()
+        ref = weakref.ref(lock, dropped)  # noqa: F841 - the callback fires when lock dies
+        del lock
+        gc.collect()
+        return "report"
+
+    monkeypatch.setattr("morphlab.morphing.leading_edge.study", study)
+    assert cli.main(["morphing", "--out", str(tmp_path / "out")]) == 130
+    captured = capsys.readouterr()
+    assert captured.err.strip().splitlines() == ["morphlab: interrupted"]
+    assert captured.out == "" and os.listdir(tmp_path) == []
+
+
 def test_results_move_into_an_existing_folder(tmp_path, monkeypatch, capsys):
     out = tmp_path / "out"
     out.mkdir()
