@@ -251,9 +251,30 @@ def element_stress_matrix(X1, X2, E, cfib, B):
                 B[..., end, f, b] = _sum_nz(row, T[..., :, b], b)
 
 
+def element_arrays(X1, X2, rhoA, EA, EI, E, cfib, dtype) -> tuple:
+    """The arrays of a stack of elements, in one pass of array operations.
+
+    ``X1, X2`` (n, 2): end points, each element in the frame of its own body; ``rhoA, EA, EI,
+    E, cfib`` (n,) or scalars: section data (:func:`beam_element_arrays`). Returns ``(scal
+    (n, 4), IS (n, 2, 6), I0S (n, 6), I0IS (n, 6), Mff (n, 6, 6), St (n, 6, 6), K (n, 6, 6),
+    B (n, 2, 2, 6))``, ``scal`` each element's share of its body's ``[m, I_u_x, I_u_y,
+    I_00]``. Every entry of element ``e`` comes from element ``e``'s data alone by elementwise
+    operations, so it has the same bits whatever else is in the stack."""
+    n = X1.shape[0]
+    scal = np.zeros((n, 4), dtype=dtype)
+    IS = np.zeros((n, 2, 6), dtype=dtype)
+    I0S, I0IS = np.zeros((n, 6), dtype=dtype), np.zeros((n, 6), dtype=dtype)
+    Mff, St, K = (np.zeros((n, 6, 6), dtype=dtype) for _ in range(3))
+    B = np.zeros((n, 2, 2, 6), dtype=dtype)
+    element_invariants(X1, X2, rhoA, scal, IS, I0S, I0IS, Mff, St)
+    element_stiffness(X1, X2, EA, EI, K)
+    element_stress_matrix(X1, X2, E, cfib, B)
+    return scal, IS, I0S, I0IS, Mff, St, K, B
+
+
 def beam_element_arrays(X, conn, rhoA, EA, EI, E, cfib, body_scalars, IS, I0S, I0IS, Mff, St, K,
                         B):
-    """Element arrays of one beam body, all elements at once.
+    """Element arrays of one beam body, all elements at once (:func:`element_arrays`).
 
     Parameters
     ----------
@@ -268,9 +289,8 @@ def beam_element_arrays(X, conn, rhoA, EA, EI, E, cfib, body_scalars, IS, I0S, I
     IS : (n_elem, 2, 6), I0S, I0IS : (n_elem, 6), Mff, St, K : (n_elem, 6, 6), B : (n_elem, 2, 2, 6)
         Per-element invariant contributions, stiffness and stress matrices (out).
     """
-    X1, X2 = X[conn[:, 0]], X[conn[:, 1]]
-    scal = np.zeros((conn.shape[0], 4), dtype=body_scalars.dtype)
-    element_invariants(X1, X2, rhoA, scal, IS, I0S, I0IS, Mff, St)
-    body_scalars[:] = scal.sum(axis=0)
-    element_stiffness(X1, X2, EA, EI, K)
-    element_stress_matrix(X1, X2, E, cfib, B)
+    arrays = element_arrays(X[conn[:, 0]], X[conn[:, 1]], rhoA, EA, EI, E, cfib,
+                            body_scalars.dtype)
+    body_scalars[:] = arrays[0].sum(axis=0)
+    for out, value in zip((IS, I0S, I0IS, Mff, St, K, B), arrays[1:]):
+        out[...] = value
