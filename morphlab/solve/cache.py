@@ -15,7 +15,7 @@ from ..kernels.newton import newton_loop
 
 #: Wall time of the first compilation of a primal run's kernels on a 2-core machine [s]
 #: (BENCHMARKS.md, "Start-up").
-FIRST_COMPILATION_S = 30
+FIRST_COMPILATION_S = 20
 
 _announced = False
 
