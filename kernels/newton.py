@@ -7,16 +7,19 @@ the compiled sparse refactorization with a row order SuperLU chose); from then o
 kernels, in the same order and with the same arithmetic, run here in one call: bitwise the
 same iterates.
 
-A factor is one of two kinds, told apart by the size of the dense arrays:
+A factor is one of two kinds:
 
-* dense (``LU`` (n, n), ``piv`` (n,)): :mod:`morphlab.kernels.dense`;
-* sparse (``LU`` of shape (0, 0)): the values ``Lx, Ux, Ud`` of
-  :func:`morphlab.kernels.sparse_lu.refactor`, with the arrays of the row order it reads,
-  ``order = (gather, pair, b_indices, b_indptr, perm_r, work)``, and the patterns its solve
-  reads, ``pattern = (Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale)``.
+* dense (``LU`` (n, n), ``piv`` (n,)): :mod:`morphlab.kernels.dense`; ``order`` and
+  ``pattern`` are None;
+* sparse: the values ``Lx, Ux, Ud`` of :func:`morphlab.kernels.sparse_lu.refactor`, with the
+  arrays of the row order it reads, ``order = (gather, pair, b_indices, b_indptr, perm_r,
+  work)``, and the patterns its solve reads, ``pattern = (Lp, Li, Up, Ui, row_from,
+  row_scale, col_to, col_scale)``; ``LU`` and ``piv`` are empty.
 
-The other kind's arrays are passed empty. The sensitivity recursion
-(:mod:`morphlab.kernels.direct`) solves with :func:`solve_factored` as well.
+The kind is told by ``order is None`` / ``pattern is None``, a test Numba decides when it
+compiles: a model whose step matrices are sparse never compiles the dense LU, and the other
+way round. The sensitivity recursion (:mod:`morphlab.kernels.direct`) solves with
+:func:`solve_factored` as well.
 """
 
 import numpy as np
@@ -36,10 +39,10 @@ CONVERGED, NONFINITE_RESIDUAL, SINGULAR, NONFINITE_CORRECTION, NOT_CONVERGED, PI
 @njit(cache=True)
 def factor_matrix(data, indices, indptr, LU, piv, Lx, Ux, Ud, order, pattern, tau):
     """Factor the step matrix with CSC values ``data`` over ``(indices, indptr)``: densely into
-    ``LU, piv`` if ``LU`` has rows, else by the sparse refactorization into ``Lx, Ux, Ud``
+    ``LU, piv`` if ``order`` is None, else by the sparse refactorization into ``Lx, Ux, Ud``
     (pivots tested against the threshold ``tau``). Returns -1, or the first column whose pivot
     is exactly zero (dense) or fails the threshold (sparse: the row order no longer serves)."""
-    if LU.shape[0] > 0:
+    if order is None:
         csc_to_dense(data, indices, indptr, LU)
         return lu_factor(LU, piv)
     gather, pair, b_indices, b_indptr, perm_r, work = order
@@ -51,8 +54,8 @@ def factor_matrix(data, indices, indptr, LU, piv, Lx, Ux, Ud, order, pattern, ta
 @njit(cache=True)
 def solve_factored(b, work, LU, piv, Lx, Ux, Ud, pattern):
     """Solve in place for ``b`` (n, m) with the factors of :func:`factor_matrix` (``work``: (n, m)
-    scratch, read by the sparse solve only)."""
-    if LU.shape[0] > 0:
+    scratch, read by the sparse solve only; ``pattern`` None: the dense factor)."""
+    if pattern is None:
         lu_solve(LU, piv, b)
     else:
         Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
@@ -63,7 +66,7 @@ def solve_factored(b, work, LU, piv, Lx, Ux, Ud, pattern):
 @njit(cache=True)
 def solve_factored_transposed(b, work, LU, piv, Lx, Ux, Ud, pattern):
     """:func:`solve_factored` for the transposed matrix (the adjoint sweep)."""
-    if LU.shape[0] > 0:
+    if pattern is None:
         lu_solve_transposed(LU, piv, b)
     else:
         Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
@@ -116,7 +119,7 @@ def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof
         step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
         bad = factor_matrix(data, indices, indptr, LU, piv, Lx, Ux, Ud, order, pattern, tau)
         if bad >= 0:
-            return z, k, SINGULAR if LU.shape[0] > 0 else PIVOT_REFUSED, bad
+            return z, k, SINGULAR if order is None else PIVOT_REFUSED, bad
         for r in range(n):
             dz[r, 0] = -R[r]
         solve_factored(dz, work, LU, piv, Lx, Ux, Ud, pattern)

@@ -58,7 +58,7 @@ class Factor:
 
     def kernel_args(self) -> tuple:  # pragma: no cover - interface
         """``(LU, piv, Lx, Ux, Ud, pattern)`` of :func:`morphlab.kernels.newton.solve_factored`
-        (the other kind's arrays empty)."""
+        (the other kind's arrays empty, ``pattern`` None for a dense factor)."""
         raise NotImplementedError
 
 
@@ -68,12 +68,17 @@ def _columns(b, dtype):
     return np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1), b.shape
 
 
-def _no_sparse(dtype) -> tuple:
-    """``(order, pattern)`` of :mod:`morphlab.kernels.newton` with no entries, typed as those
-    of a sparse factor of ``dtype``: what the compiled kernels take beside a dense factor."""
+def empty_loop_arrays(dtype, dense: bool) -> tuple:
+    """:meth:`StepFactorization.loop_arrays` of either kind with no entries: the types the
+    compiled Newton loop and its factor and solve kernels take for ``dtype``."""
+    none = np.zeros(0, dtype=dtype)
+    if dense:
+        return np.zeros((0, 0), dtype=dtype), np.zeros(0, dtype=np.int64), none, none, none, \
+            None, None
     idx = np.zeros(0, dtype=np.int64)
     real = np.zeros(0)
-    return ((idx, real, idx, idx, idx, np.zeros(0, dtype=dtype)),
+    return (np.zeros((0, 0), dtype=dtype), idx, none, none, none,
+            (idx, real, idx, idx, idx, np.zeros(0, dtype=dtype)),
             (idx, idx, idx, idx, idx, real, idx, real))
 
 
@@ -103,7 +108,7 @@ class _DenseLU(Factor):
 
     def kernel_args(self) -> tuple:
         empty = np.zeros(0, dtype=self.LU.dtype)
-        return self.LU, self.piv, empty, empty, empty, _no_sparse(self.LU.dtype)[1]
+        return self.LU, self.piv, empty, empty, empty, None
 
 
 class _RowOrder:
@@ -235,7 +240,7 @@ class _SuperLUFactor(Factor):
 
 def stacked_arrays(factors: list[Factor]) -> tuple:
     """``(LU, piv, Lx, Ux, Ud, pattern)`` of K factors of one group, stacked along a leading
-    axis K (the other kind's stacks hold K empty factors): what
+    axis K (the other kind's stacks hold K empty factors; ``pattern`` None: dense): what
     :func:`morphlab.kernels.direct.block_recursion` reads."""
     args = [f.kernel_args() for f in factors]
     stacks = tuple(np.stack([a[k] for a in args]) for k in range(5))
@@ -315,13 +320,13 @@ class StepFactorization:
     # ---- the compiled Newton loop (morphlab.kernels.newton.newton_loop)
     def loop_arrays(self) -> tuple:
         """Fresh factor arrays for one compiled Newton solve once :attr:`settled`:
-        ``(LU, piv, Lx, Ux, Ud, order, pattern)`` (the other kind's arrays empty)."""
+        ``(LU, piv, Lx, Ux, Ud, order, pattern)`` (dense: ``order``, ``pattern`` None and
+        ``Lx, Ux, Ud`` empty; sparse: ``LU``, ``piv`` empty)."""
         dt = self.dtype
         if self.dense:
-            order, pattern = _no_sparse(dt)
             none = np.zeros(0, dtype=dt)
             return (np.empty((self.n, self.n), dtype=dt), np.empty(self.n, dtype=np.int64),
-                    none, none, none, order, pattern)
+                    none, none, none, None, None)
         rows = self._rows.ready()
         return (np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64), *rows.empty_factors(),
                 rows.order_arrays, rows.solve_arrays)
