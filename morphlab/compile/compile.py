@@ -8,6 +8,8 @@ names to DOFs. Nothing here is in an inner loop: this is model-building code, ke
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..errors import ModelError
@@ -61,7 +63,8 @@ def _same_topology(sysd: dict, like: System) -> bool:
 
 
 def compile_model(model: Model, dtype=None, *, like: System | None = None,
-                  record: bool = False) -> System:
+                  record: bool = False, on_built: Callable[[System], None] | None = None
+                  ) -> System:
     """Compile ``model`` into a :class:`System`.
 
     Parameters
@@ -79,6 +82,10 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     record : bool
         Keep what the perturbed designs of a sensitivity run need to compile incrementally
         (held while the returned system lives).
+    on_built : callable, optional
+        Called with the system as soon as its arrays are built, before the checks below run
+        the first kernels (:func:`morphlab.simulate` starts compiling kernels on a second
+        process there, ``morphlab.solve.precompile``).
 
     Raises
     ------
@@ -117,6 +124,8 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     else:
         sysd.update(newton_pattern(sysd))
     system = System(**sysd)
+    if on_built is not None:
+        on_built(system)
     # a complex-step perturbation of ``like``: its real parts are those of ``like`` (to
     # O(h^2) = 1e-60), so the checks of the initial configuration and of the constraint rank,
     # which read real parts only, would repeat those of ``like``

@@ -13,9 +13,11 @@ import sys
 
 from ..kernels.newton import newton_loop
 
-#: Wall time of the first compilation of a primal run's kernels on a 2-core machine [s]
-#: (BENCHMARKS.md, "Start-up").
-FIRST_COMPILATION_S = 20
+#: Wall time of the first compilation of a primal run's kernels on 2 idle cores, with the
+#: compile helper of ``morphlab.solve.precompile`` [s] (BENCHMARKS.md, "Cold start").
+FIRST_COMPILATION_S = 13
+#: The same in one process (one core, or ``MORPHLAB_COMPILE_HELPER=0``) [s].
+FIRST_COMPILATION_1CORE_S = 20
 
 _announced = False
 
@@ -44,5 +46,5 @@ def announce_compilation() -> None:
         return
     _announced = True
     print(f"morphlab: compiling the numerical kernels once (about {FIRST_COMPILATION_S} s on "
-          f"2 cores); they are cached in {kernel_cache_dir()} for later runs", file=sys.stderr,
-          flush=True)
+          f"2 idle cores, {FIRST_COMPILATION_1CORE_S} s on one); they are cached in "
+          f"{kernel_cache_dir()} for later runs", file=sys.stderr, flush=True)

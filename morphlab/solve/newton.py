@@ -65,15 +65,21 @@ class StepProblem:
 
     def residual(self, z, n_dof: int, R=None):
         """``(R, |R|)`` at ``z`` (``|R|`` NaN or Inf if an entry is)."""
-        dt = np.result_type(z.dtype, self.qh.dtype, self.R_hist.dtype)
         if R is None:
+            dt = np.result_type(z.dtype, self.qh.dtype, self.R_hist.dtype)
             R = np.empty(z.shape[0], dtype=dt)
-        # astype(copy=False): no copies in the Newton loop when the dtypes already agree
-        ssq = step_residual(self.S, z.astype(dt, copy=False), self.qh.astype(dt, copy=False),
-                            self.vh.astype(dt, copy=False), self.coef.bh2, self.coef.gh,
-                            self.scale, self.coef.arrays.w_new, self.b0, self.b1, *self.ta,
-                            n_dof, self.R_hist.astype(dt, copy=False), R)
+        ssq = step_residual(*self.residual_args(z, n_dof, R))
         return R, float(np.sqrt(ssq))
+
+    def residual_args(self, z, n_dof: int, R) -> tuple:
+        """The arguments of :func:`~morphlab.kernels.assemble.step_residual` at ``z`` into
+        ``R`` (also what ``morphlab.solve.precompile`` compiles it for)."""
+        dt = R.dtype
+        # astype(copy=False): no copies in the Newton loop when the dtypes already agree
+        return (self.S, z.astype(dt, copy=False), self.qh.astype(dt, copy=False),
+                self.vh.astype(dt, copy=False), self.coef.bh2, self.coef.gh, self.scale,
+                self.coef.arrays.w_new, self.b0, self.b1, *self.ta, n_dof,
+                self.R_hist.astype(dt, copy=False), R)
 
     def fill(self, z, data) -> None:
         """The exact step matrix at ``z`` into the CSC values ``data``."""
@@ -184,11 +190,7 @@ class NewtonSolver:
             self._scratch = (np.empty(system.n, dtype=self.dtype), np.zeros((self.max_iter, 2)))
         R, hist = self._scratch
         arrays = fac.loop_arrays()  # fresh factors every step: the sensitivities keep them
-        z, it, status, bad = newton_loop(
-            p.S, z, p.qh, p.vh, p.coef.bh2, p.coef.gh, p.scale, p.coef.arrays.w_new, p.b0,
-            p.b1, *p.ta, self.n_dof, p.R_hist, system.indices, system.indptr,
-            p.coef.h == 0.0, system.length_scale, self.tol, self.max_iter, self.polish, R,
-            self.data, *arrays, PIVOT_THRESHOLD, hist)
+        z, it, status, bad = newton_loop(*self.loop_args(p, z, R, arrays, hist))
         if status == CONVERGED:
             self.n_factorizations += it + self.polish
             return z, fac.factor_of(arrays), it, hist[:it].copy()
@@ -205,6 +207,16 @@ class NewtonSolver:
         if status == NONFINITE_CORRECTION:
             raise non_finite_correction(p, z, r_norm)
         raise not_converged(p, z, self, float(hist[it - 1, 1]))
+
+    def loop_args(self, p: StepProblem, z, R, arrays: tuple, hist) -> tuple:
+        """The arguments of :func:`~morphlab.kernels.newton.newton_loop` for ``p`` from ``z``:
+        residual ``R`` (n,), factor ``arrays`` (``StepFactorization.loop_arrays``), history
+        ``hist`` (max_iter, 2) (also what ``morphlab.solve.precompile`` compiles it for)."""
+        system = self.system
+        return (p.S, z, p.qh, p.vh, p.coef.bh2, p.coef.gh, p.scale, p.coef.arrays.w_new, p.b0,
+                p.b1, *p.ta, self.n_dof, p.R_hist, system.indices, system.indptr,
+                p.coef.h == 0.0, system.length_scale, self.tol, self.max_iter, self.polish, R,
+                self.data, *arrays, PIVOT_THRESHOLD, hist)
 
     def solve_modified(self, p: StepProblem, z) -> tuple:
         """Newton with the factorization kept over iterations and steps (primal runs only):

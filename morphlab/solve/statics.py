@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numbers
 import time as _time
+from functools import partial
 
 import numpy as np
 
@@ -12,6 +13,7 @@ from ..errors import ConvergenceError, ModelError, SolverError
 from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
+from . import precompile
 from .linalg import DENSE_MAX
 from .scheme import _is_real
 from .settings import Settings
@@ -71,7 +73,9 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     """
     _check_args(steps, t, tol)
     kinematic_tol = check_kinematic_tol(kinematic_tol)
-    system = model if isinstance(model, System) else compile_model(model)
+    system = (model if isinstance(model, System)
+              else compile_model(model, on_built=partial(precompile.start,
+                                                         dense_max=dense_max)))
     dt = system.dtype
     q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
     stp = Stepper.static(system, q, tol=tol, max_iter=max_iter, dense_max=dense_max)

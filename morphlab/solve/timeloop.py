@@ -13,6 +13,7 @@ import threading
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from ..errors import Interrupted, ModelError, ProfileError, SolverError
 from ..model import Model
 from ..results.checks import assess, report_findings
 from ..results.result import Result
+from . import precompile
 from .cache import announce_compilation
 from .linalg import Factor
 from .scheme import StepCoefficients
@@ -97,8 +99,19 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     check_memory(system, n_steps + 1, store, memmap)
     t = settings.t_start + settings.h * np.arange(n_steps + 1)
     hist = HistoryStore(system, t, store, memmap)
-    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
     table, failure = _time_table(system, settings, t, hist)
+    if observer is None:  # a sensitivity run compiles other signatures of the same kernels
+        precompile.start(system, table, settings.dense_max)
+    return _run(system, settings, t, hist, table, failure, observer=observer,
+                progress=progress, scale=scale, q0=q0, v0=v0, polish=polish,
+                max_halvings=max_halvings)
+
+
+def _run(system, settings, t, hist, table, failure, *, observer, progress, scale, q0, v0,
+         polish, max_halvings) -> Result:
+    """The time loop of :func:`integrate`."""
+    n_steps = settings.n_steps
+    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
     if failure is not None:  # run the steps before the failing time, then raise it
         n_steps = failure.step - 1
     reductions: list = []
@@ -249,7 +262,9 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
         With ``error.result`` holding the steps completed before the failure.
     """
     settings = Settings.of(settings, **options)
-    system = model if isinstance(model, System) else compile_model(model)
+    helper = partial(precompile.start, dense_max=settings.dense_max)
+    system = model if isinstance(model, System) else compile_model(
+        model, on_built=helper if observer is None else None)
     for name, x in (("q0", q0), ("v0", v0)):
         if x is not None and (np.shape(x) != (system.n_dof,) or not np.all(np.isfinite(x))):
             raise ModelError(f"{name} must be a finite array of shape ({system.n_dof},), got "
