@@ -4,6 +4,8 @@ constraint Jacobian (redundant or conflicting joints), with messages naming the 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ..errors import ModelError
 from ..kernels.joints import ROW_ANGLE
@@ -80,8 +82,10 @@ def constraint_rank(system, q=None):
         components over an orthonormal basis of that null space, in [0, 1]. Rows with a value
         above ~1e-6 belong to a redundant or conflicting set; 0 for all rows when ``J`` has full
         row rank.
-    sigma : (min(n_con, n_used),) float
-        Singular values of the scaled Jacobian, largest first.
+    sigma : (min(n_rows, n_used),) float
+        Singular values, largest first, of the scaled Jacobian with the rows joining the
+        floating frames of beams eliminated (below; the scaled Jacobian itself for models
+        without such rows).
 
     Notes
     -----
@@ -94,17 +98,31 @@ def constraint_rank(system, q=None):
     complex-step perturbation does not change the topology). The left singular vectors of the
     zero singular values span the null space of ``J^T``: the combinations of rows that repeat
     (or, with a different right-hand side, contradict) each other.
+
+    The three rows joining frame ``f`` of a beam to frame ``f - 1`` have the block
+    ``-[[1, 0, a], [0, 1, b], [0, 0, 1]]`` (``a, b``: a lever arm) in frame ``f``'s reference
+    coordinates, so these rows and columns form a square block-bidiagonal matrix ``B`` of
+    determinant ±1. Eliminating them (block Gaussian elimination, which keeps the rank) leaves
+    ``S = J_uo - J_uc B^-1 J_fo`` over the other rows ``u`` and columns ``o``, and ``rank J =
+    n_f + rank S``; the dependent rows are those of ``S``. The SVD is then that of ``S``, with
+    as many rows as the model has joints besides the frame joints: a beam with a frame per
+    element costs no more than one with a single frame (a dense SVD of ``J`` grows with the
+    cube of the number of frames).
     """
     n_con = system.n_con
     if n_con == 0:
         return 0, np.zeros(0), np.zeros(0)
-    Js = _scaled_jacobian(system, q)
-    if Js.shape[1] == 0:
-        return 0, np.ones(n_con), np.zeros(0)
-    U, sigma, _ = np.linalg.svd(Js, full_matrices=True)
+    S, rows, n_f = _reduced_jacobian(system, q)
+    if S.size == 0:  # no rows besides the frame joints, or only zero rows
+        dep = np.zeros(n_con)
+        dep[rows] = 1.0
+        return n_f, dep, np.zeros(0)
+    U, sigma, _ = np.linalg.svd(S, full_matrices=True)
     rank = _rank(sigma)
     null = U[:, rank:]
-    return rank, np.sqrt(np.sum(null * null, axis=1)), sigma
+    dep = np.zeros(n_con)
+    dep[rows] = np.sqrt(np.sum(null * null, axis=1))
+    return n_f + rank, dep, sigma
 
 
 def _rank(sigma: np.ndarray) -> int:
@@ -112,11 +130,11 @@ def _rank(sigma: np.ndarray) -> int:
     return int(np.sum(sigma > RANK_RTOL * sigma[0])) if sigma.size and sigma[0] > 0 else 0
 
 
-def _scaled_jacobian(system, q=None) -> np.ndarray:
-    """``D_r J D_c`` at ``q`` (default ``q0``), its columns that hold a nonzero only
-    (:func:`constraint_rank`)."""
+def _scaled_jacobian(system, q=None):
+    """``D_r J D_c`` at ``q`` (default ``q0``), a SciPy CSR matrix (:func:`constraint_rank`)."""
     q = np.real(system.q0 if q is None else np.asarray(q))
-    J = np.real(system.constraint_matrix(q.astype(float)))
+    J = system.constraint_matrix(q.astype(float), sparse=True)
+    J = sp.csr_matrix((np.real(J.data), J.indices, J.indptr), shape=J.shape)
     L = system.length_scale
     rot = np.zeros(system.n_dof, dtype=bool)
     for info in system.bodies.values():
@@ -128,8 +146,53 @@ def _scaled_jacobian(system, q=None) -> np.ndarray:
             rot[nd[nd >= 0]] = True
     col = np.where(rot, 1.0 / L, 1.0)
     row = np.where(system.con_kind == ROW_ANGLE, L, 1.0)
-    Js = row[:, None] * J * col[None, :]
-    return Js[:, np.flatnonzero(np.any(Js != 0.0, axis=0))]
+    return sp.diags(row) @ J @ sp.diags(col)
+
+
+def _frame_joints(system) -> tuple[np.ndarray, np.ndarray]:
+    """The rows joining neighbouring frames of the beams and the reference coordinates of the
+    frame each joint starts (x, y, r rows against R_x, R_y, theta), in matching order."""
+    rows_of: dict[str, list[int]] = {}
+    for i, joint in enumerate(system.con_joint):
+        rows_of.setdefault(joint, []).append(i)
+    rows, cols = [], []
+    for name, info in system.bodies.items():
+        if info.frame_ref is None:
+            continue
+        for f in range(1, info.frame_ref.shape[0]):
+            r = rows_of.get(f"{name}.frame{f}", [])
+            if len(r) == 3:
+                rows += r
+                cols += list(info.frame_ref[f])
+    return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
+
+
+def _eliminate_frames(system, q=None) -> tuple:
+    """``(S, rows, cols, n_f)``: the scaled Jacobian with its ``n_f`` frame-joint rows
+    eliminated against the frames' reference coordinates (:func:`constraint_rank`, Notes), a
+    dense ``S`` over the other ``rows`` and ``cols``. Without frame joints, or should their
+    block not be invertible, ``S`` is the whole scaled Jacobian."""
+    Js = _scaled_jacobian(system, q)
+    F, C = _frame_joints(system)
+    n_con, n_dof = Js.shape
+    if F.size:
+        U, O = np.setdiff1d(np.arange(n_con), F), np.setdiff1d(np.arange(n_dof), C)
+        JF, JU = Js[F], Js[U]
+        try:
+            lu = spla.splu(JF[:, C].T.tocsc())  # B^T Y^T = J_uc^T
+            Yt = lu.solve(JU[:, C].T.toarray()) if U.size else np.zeros((C.size, 0))
+            S = JU[:, O].toarray() - (JF[:, O].T @ Yt).T
+            if np.all(np.isfinite(S)):
+                return S, U, O, int(F.size)
+        except RuntimeError:  # singular: the frame rows are not what they are built as
+            pass
+    return Js.toarray(), np.arange(n_con), np.arange(n_dof), 0
+
+
+def _reduced_jacobian(system, q=None) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(S, rows, n_f)`` of :func:`_eliminate_frames`, ``S`` over its nonzero columns."""
+    S, rows, _, n_f = _eliminate_frames(system, q)
+    return S[:, np.flatnonzero(np.any(S != 0.0, axis=0))], rows, n_f
 
 
 def check_rank(system) -> None:
@@ -145,8 +208,9 @@ def check_rank(system) -> None:
         return
     # the common case, full row rank, from the singular values alone (a third of the cost of
     # the singular vectors); the vectors, which name the dependent rows, only when it is not
-    Js = _scaled_jacobian(system)
-    if Js.shape[1] >= n_con and _rank(np.linalg.svd(Js, compute_uv=False)) == n_con:
+    S, rows, n_f = _reduced_jacobian(system)
+    sigma = np.linalg.svd(S, compute_uv=False) if S.size else np.zeros(0)
+    if S.shape[1] >= rows.size and n_f + _rank(sigma) == n_con:
         return
     rank, dep, _ = constraint_rank(system)
     if rank == n_con:

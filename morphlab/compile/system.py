@@ -191,9 +191,10 @@ class System:
                                   self.con_u0.astype(dt), phi, phid)
         return phi, phid
 
-    def constraint_matrix(self, q):
-        """Dense constraint Jacobian (n_con, n_dof) at ``q``: the constraint rows of the step
-        matrix with only their ``J a`` term weighted (the kernel the solver compiles anyway)."""
+    def constraint_matrix(self, q, sparse: bool = False):
+        """Constraint Jacobian (n_con, n_dof) at ``q``, dense (or a SciPy CSR matrix when
+        ``sparse``): the constraint rows of the step matrix with only their ``J a`` term
+        weighted (the kernel the solver compiles anyway)."""
         dt = np.result_type(self.dtype, q.dtype)
         n = self.n
         data = np.zeros(self.nnz, dtype=dt)
@@ -202,7 +203,8 @@ class System:
                               0.0, 0.0, 1.0, np.array([0.0, 1.0, 0.0, 1.0, 0.0]), 0.0, 0.0,
                               np.zeros((self.load_dofs.shape[0], 2), dtype=dt), data)
         A = sp.csc_matrix((data, self.indices, self.indptr), shape=(n, n))
-        return A[self.n_dof:, :self.n_dof].toarray()
+        J = A[self.n_dof:, :self.n_dof]
+        return J.tocsr() if sparse else J.toarray()
 
 
 def kernel_arrays(system: System, dtype=None) -> SystemArrays:
