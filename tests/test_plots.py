@@ -54,6 +54,35 @@ def _colorbar_label(fig):
 
 
 # --------------------------------------------------------------------------- model
+def test_model_draws_springs_and_line_loads():
+    m = ml.Model(gravity=(0.0, 0.0), name="springs")
+    nodes = straight_nodes(4, length=40.0)
+    beam = m.add_beam(nodes, E=7e4, rho=2.7e-9, thickness=1.0, width=10.0, name="beam")
+    arm = m.add_rigid_body(mass=1e-4, inertia=1.0, position=(20.0, 30.0), name="arm")
+    pin = m.add_revolute(m.ground, beam, at=(0.0, 0.0), name="pin")
+    m.add_revolute(m.ground, arm, at=(20.0, 30.0), name="pivot")
+    m.add_spring("k", beam, arm, at_a=(40.0, 0.0), at_b=(30.0, 30.0), stiffness=1.0)
+    m.add_rotational_spring("kr", pin, stiffness=2.0)
+    m.add_line_load("q", beam, q=(0.0, -0.5), elements=[1, 2])
+    ax = plots.model(m).axes[0]
+    (zig,) = [ln for ln in ax.lines if ln.get_gid() == "spring:k"]
+    xy = zig.get_xydata()
+    # from one attachment point to the other, with teeth off the line between them
+    assert np.array_equal(xy[0], [40.0, 0.0]) and np.allclose(xy[-1], [30.0, 30.0], atol=ROUND)
+    axis = np.array([-10.0, 30.0]) / np.hypot(10.0, 30.0)
+    off = (xy - xy[0]) @ np.array([-axis[1], axis[0]])
+    assert np.abs(off).max() > 0.0 and abs(off[0]) == 0.0
+    (spiral,) = [ln for ln in ax.lines if ln.get_gid() == "spring:kr"]  # around the pin
+    r = np.hypot(*spiral.get_xydata().T)
+    assert r.min() > 0.0 and np.all(np.diff(r) > 0.0)
+    # one arrow per loaded element, pointing at its middle along q
+    heads = [(t.xy, t.xyann) for t in ax.texts if t.get_gid() == "line_load:q"]
+    assert [tuple(h) for h, _ in heads] == [(15.0, 0.0), (25.0, 0.0)]
+    assert all(tail[0] == head[0] and tail[1] > head[1] for head, tail in heads)
+    assert [t.get_text() for t in ax.texts if t.get_gid() in ("label:k", "label:kr",
+                                                               "label:q")] == ["k", "kr", "q"]
+
+
 def test_model_draws_bodies_joints_and_loads(mech):
     before = plt.get_fignums()
     fig = plots.model(mech)

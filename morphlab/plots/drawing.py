@@ -20,6 +20,7 @@ from ..model import (
     Prismatic,
     Revolute,
     RigidBody,
+    Spring,
     Weld,
 )
 from ._common import _new_axes, _units
@@ -47,6 +48,9 @@ def _attachment_points(m: Model) -> dict:
             add(j.body, j.at)
     for ld in list(m.forces) + list(m.torques):
         add(ld.body, ld.at)
+    for sp in m.springs:
+        add(sp.a, sp.at_a)
+        add(sp.b, sp.at_b)
     return pts
 
 
@@ -222,6 +226,54 @@ def _draw_loads(ax, m: Model, sc: _Scale, labels: bool, u: dict) -> None:
                     f"{tq.name} ({mag:.3g} {u['torque']})", gid=f"label:{tq.name}", **_TEXT)
 
 
+def _zigzag(p0, p1, width: float, n: int = 6) -> np.ndarray:
+    """Points (2 n + 4, 2) of a spring symbol from ``p0`` to ``p1``: straight ends and ``n``
+    teeth of half-width ``width`` over the middle 70 %."""
+    d = p1 - p0
+    length = float(np.hypot(*d))
+    if length == 0.0:
+        return np.array([p0, p1])
+    t, nrm = d / length, np.array([-d[1], d[0]]) / length
+    s = np.r_[0.0, 0.15, 0.15 + 0.7 * (np.arange(2 * n) + 0.5) / (2 * n), 0.85, 1.0]
+    side = np.r_[0.0, 0.0, width * (-1.0) ** np.arange(2 * n), 0.0, 0.0]
+    return p0 + np.outer(s * length, t) + np.outer(side, nrm)
+
+
+def _draw_springs(ax, m: Model, sc: _Scale, labels: bool) -> None:
+    """Spring-dampers as zigzags between their points, rotational ones as a spiral at theirs,
+    line loads as a row of arrows along the loaded elements."""
+    for sp in m.springs:
+        if isinstance(sp, Spring):
+            p0, p1 = (np.real(np.asarray(x)).astype(float) for x in (sp.at_a, sp.at_b))
+            xy = _zigzag(p0, p1, 0.5 * sc.sym)
+            at = 0.5 * (p0 + p1)
+        else:  # rotational: a spiral around its point (a beam node, or the body's centre)
+            at = np.real(np.asarray(sp.at_a if sp.at_a is not None else sp.a.position,
+                                    dtype=complex)).astype(float)
+            ang = np.linspace(0.0, 4.0 * np.pi, 80)
+            r = sc.sym * (0.3 + 0.9 * ang / ang[-1])
+            xy = at + np.c_[r * np.cos(ang), r * np.sin(ang)]
+        ax.plot(xy[:, 0], xy[:, 1], color="tab:green", linewidth=1.2, zorder=5,
+                gid=f"spring:{sp.name}")
+        if labels:
+            ax.text(at[0] + sc.off, at[1] + sc.off, sp.name, gid=f"label:{sp.name}", **_TEXT)
+    for ld in m.line_loads:
+        nodes = np.real(np.asarray(ld.beam.nodes)).astype(float)
+        q = np.real(np.asarray(ld.q)).astype(float)
+        mag = float(np.hypot(*q))
+        d = q / mag if mag > 0 else np.array([0.0, -1.0])
+        heads = np.concatenate([0.5 * (nodes[e] + nodes[e + 1])[None] for e in ld.elements])
+        for h in heads:
+            ax.annotate("", xy=h, xytext=h - 0.06 * sc.size * d, zorder=6,
+                        gid=f"line_load:{ld.name}", arrowprops=dict(
+                            arrowstyle="-|>", color="tab:blue", linewidth=1.0,
+                            mutation_scale=8))
+        if labels and heads.size:
+            tail = heads[len(heads) // 2] - 0.06 * sc.size * d
+            ax.text(tail[0], tail[1], ld.name, ha="center", va="bottom" if d[1] <= 0 else "top",
+                    gid=f"label:{ld.name}", **_TEXT)
+
+
 def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None) -> Figure:
     """Draw a model in its initial configuration, before running it.
 
@@ -253,8 +305,11 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
     stand on a hatched ground symbol (a triangle for a pin, a block when the rotation is held),
     a drive is a dashed curved arrow. Forces are arrows of fixed length (a fraction of the model
     size) pointing at their point, torques solid curved arrows (counter-clockwise when positive).
-    Drawn artists carry a ``gid`` (``"beam:<name>"``, ``"body:<name>"``, ``"joint:<name>"``,
-    ``"ground"``, ``"force:<name>"``, ``"torque:<name>"``) so that they can be found again.
+    Spring-dampers are zigzags between their points, rotational springs spirals at theirs, line
+    loads a row of arrows at the middle of the loaded elements. Drawn artists carry a ``gid``
+    (``"beam:<name>"``, ``"body:<name>"``, ``"joint:<name>"``, ``"ground"``,
+    ``"force:<name>"``, ``"torque:<name>"``, ``"spring:<name>"``, ``"line_load:<name>"``) so
+    that they can be found again.
     """
     u = _units(units)
     m = _as_model(model_or_system)
@@ -264,6 +319,7 @@ def model(model_or_system, ax=None, show_nodes=True, labels=True, *, units=None)
     _draw_bodies(ax, m, sc, show_nodes, labels)
     _draw_joints(ax, m, sc, labels)
     _draw_loads(ax, m, sc, labels, u)
+    _draw_springs(ax, m, sc, labels)
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.set_xlabel(f"x [{u['length']}]")
