@@ -100,9 +100,11 @@ def constraint_rank(system, q=None):
     (or, with a different right-hand side, contradict) each other.
 
     The three rows joining frame ``f`` of a beam to frame ``f - 1`` have the block
-    ``-[[1, 0, a], [0, 1, b], [0, 0, 1]]`` (``a, b``: a lever arm) in frame ``f``'s reference
-    coordinates, so these rows and columns form a square block-bidiagonal matrix ``B`` of
-    determinant ±1. Eliminating them (block Gaussian elimination, which keeps the rank) leaves
+    ``-[[1, 0, 0], [a, 1, 0], [b, 0, 1]]`` (rows ``r, x, y``, columns ``theta, R_x, R_y``;
+    ``a, b``: a lever arm) in frame ``f``'s reference coordinates and entries in frame
+    ``f - 1``'s only otherwise, so these rows and columns form a square lower triangular matrix
+    ``B`` with ±1 on its diagonal. Eliminating them (Gaussian elimination, which keeps the
+    rank; a triangular solve with ``B^T``) leaves
     ``S = J_uo - J_uc B^-1 J_fo`` over the other rows ``u`` and columns ``o``, and ``rank J =
     n_f + rank S``; the dependent rows are those of ``S``. The SVD is then that of ``S``, with
     as many rows as the model has joints besides the frame joints: a beam with a frame per
@@ -151,7 +153,9 @@ def _scaled_jacobian(system, q=None):
 
 def _frame_joints(system) -> tuple[np.ndarray, np.ndarray]:
     """The rows joining neighbouring frames of the beams and the reference coordinates of the
-    frame each joint starts (x, y, r rows against R_x, R_y, theta), in matching order."""
+    frame each joint starts, in matching order: per joint its r, x, y rows against theta,
+    R_x, R_y of its frame, which makes their block lower triangular (:func:`constraint_rank`,
+    Notes)."""
     rows_of: dict[str, list[int]] = {}
     for i, joint in enumerate(system.con_joint):
         rows_of.setdefault(joint, []).append(i)
@@ -161,9 +165,9 @@ def _frame_joints(system) -> tuple[np.ndarray, np.ndarray]:
             continue
         for f in range(1, info.frame_ref.shape[0]):
             r = rows_of.get(f"{name}.frame{f}", [])
-            if len(r) == 3:
-                rows += r
-                cols += list(info.frame_ref[f])
+            if len(r) == 3:  # built as x, y, r
+                rows += [r[2], r[0], r[1]]
+                cols += [info.frame_ref[f][2], info.frame_ref[f][0], info.frame_ref[f][1]]
     return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
 
 
@@ -178,14 +182,15 @@ def _eliminate_frames(system, q=None) -> tuple:
     if F.size:
         U, O = np.setdiff1d(np.arange(n_con), F), np.setdiff1d(np.arange(n_dof), C)
         JF, JU = Js[F], Js[U]
-        try:
-            lu = spla.splu(JF[:, C].T.tocsc())  # B^T Y^T = J_uc^T
-            Yt = lu.solve(JU[:, C].T.toarray()) if U.size else np.zeros((C.size, 0))
+        B = JF[:, C].tocsr()
+        # lower triangular with a diagonal of +-1, as built; else the whole Jacobian below
+        if sp.triu(B, 1).nnz == 0 and np.all(np.abs(B.diagonal()) > 0.5):
+            # B^T Y^T = J_uc^T: a triangular solve, no factorization
+            Yt = (spla.spsolve_triangular(B.T.tocsr(), JU[:, C].T.toarray(), lower=False)
+                  if U.size else np.zeros((C.size, 0)))
             S = JU[:, O].toarray() - (JF[:, O].T @ Yt).T
             if np.all(np.isfinite(S)):
                 return S, U, O, int(F.size)
-        except RuntimeError:  # singular: the frame rows are not what they are built as
-            pass
     return Js.toarray(), np.arange(n_con), np.arange(n_dof), 0
 
 
