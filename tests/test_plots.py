@@ -168,6 +168,31 @@ def test_snapshots_draw_one_line_per_body_and_time(run, mech):
     np.testing.assert_allclose(tgt.get_xydata(), target, atol=EXACT)
 
 
+def test_snapshots_and_animation_draw_springs_between_their_moving_points(tmp_path):
+    # a pendulum beam held at its middle node by a spring from a swinging arm: each snapshot's
+    # zigzag runs from that node as drawn (deformation magnified) to the arm's point then
+    m = ml.Model(gravity=(0.0, -9.81e3), name="sprung")
+    nodes = straight_nodes(4, length=40.0)
+    beam = m.add_beam(nodes, E=7e4, rho=2.7e-9, thickness=1.0, width=10.0, name="beam")
+    arm = m.add_rigid_body(mass=1e-4, inertia=1.0, position=(20.0, 30.0), name="arm")
+    m.add_revolute(m.ground, beam, at=(0.0, 0.0), name="pin")
+    m.add_revolute(m.ground, arm, at=(20.0, 30.0), name="pivot")
+    m.add_spring("k", beam, arm, at_a=(20.0, 0.0), at_b=(30.0, 30.0), stiffness=0.05)
+    res = ml.simulate(m, t_end=0.01, dt=1e-3)
+    fig = plots.snapshots(res, n=3, magnify=5.0)
+    ax = fig.axes[0]
+    t = np.real(res.t)
+    for i, k in enumerate(np.unique(np.round(np.linspace(0, t.size - 1, 3)).astype(int))):
+        (zig,) = [ln for ln in ax.lines if ln.get_gid() == f"snapshot:{i}:k"]
+        (drawn,) = [ln for ln in ax.lines if ln.get_gid() == f"snapshot:{i}:beam"]
+        xy = zig.get_xydata()
+        assert np.array_equal(xy[0], drawn.get_xydata()[2])
+        np.testing.assert_allclose(xy[-1], np.real(res.point_positions("arm", (30.0, 30.0)))[k],
+                                   rtol=0, atol=ROUND * 50.0)
+    path = plots.animate(res, tmp_path / "sprung.gif", n_frames=4)
+    assert Image.open(path).n_frames == 4
+
+
 def test_snapshots_at_given_times_take_the_nearest_step(run):
     ax = plots.snapshots(run, times=[0.0, 0.0104]).axes[0]
     assert len(_gid_lines(ax, "snapshot:")) == 2 * 3

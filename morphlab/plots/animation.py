@@ -13,7 +13,13 @@ from matplotlib.patches import Polygon
 from ..errors import ModelError
 from ._common import _SEQUENTIAL, _check_result, _units
 from ._sliders import _block
-from .motion import _checked_outlines, _mark_ground_joints, _slider_tracks, _time_indices
+from .motion import (
+    _checked_outlines,
+    _mark_ground_joints,
+    _slider_tracks,
+    _spring_tracks,
+    _time_indices,
+)
 
 
 def _check_gif(path, fps, n_frames) -> Path:
@@ -58,6 +64,10 @@ class _Frames:
                             edgecolor="k", linewidth=1.0, zorder=4)
             ax.add_patch(block)
             self.sliders.append((guide, block, P, d, ends))
+        self.springs = []
+        for _sp, Z in _spring_tracks(result, outlines):
+            (ln,) = ax.plot(Z[0, :, 0], Z[0, :, 1], "-", color="tab:green", linewidth=1.0)
+            self.springs.append((ln, Z))
         colours = itertools.cycle(colormaps[_SEQUENTIAL](np.linspace(0.0, 0.7, 4)))
         self.lines = []
         for _, xy, _, _ in outlines:
@@ -72,6 +82,8 @@ class _Frames:
         for guide, block, P, d, ends in self.sliders:
             guide.set_data(ends[k, :, 0], ends[k, :, 1])
             block.set_xy(_block(P[k], d[k], self.sym))
+        for ln, Z in self.springs:
+            ln.set_data(Z[k, :, 0], Z[k, :, 1])
 
 
 def animate(result, path, fps=20, n_frames=60, target=None, *, dpi=80, units=None,

@@ -1,15 +1,16 @@
 """The geometry of a run that its figures draw: body outlines at every step (beams with their
-deformation magnified), the steps to draw, the target, the ground joints and the sliders."""
+deformation magnified), the steps to draw, the target, the ground joints, the sliders and the
+spring-dampers."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import ModelError
-from ..model import Beam
+from ..model import Beam, Ground, Spring
 from ._common import _points, _real_array
 from ._sliders import _sliders
-from .drawing import _attachment_points, _ground_points, _model_size
+from .drawing import _attachment_points, _ground_points, _model_size, _zigzag
 
 
 def _magnified(pos: np.ndarray, X0: np.ndarray, factor: float) -> np.ndarray:
@@ -111,3 +112,25 @@ def _slider_tracks(result) -> tuple[float, list]:
     """The size of a slider block [length] and the sliders of the run (``_sliders``)."""
     size = _model_size(result.system.model)
     return 0.03 * size, _sliders(result, size)
+
+
+def _spring_tracks(result, outlines) -> list:
+    """Per translational spring-damper: (spring, zigzags (n_t, k, 2)) between its two points,
+    a beam's point taken from its drawn (magnified) outline so that the spring meets it."""
+    beams = {name: xy for name, xy, _, is_beam in outlines if is_beam}
+    width = 0.02 * _model_size(result.system.model)  # as in the model drawing
+    n_t = np.real(result.t).shape[0]
+
+    def track(body, at):
+        if isinstance(body, Ground):
+            return np.repeat(np.real(np.asarray(at, dtype=complex))[None], n_t, axis=0)
+        if isinstance(body, Beam):
+            return beams[body.name][:, body.nearest_node(at)[0]]
+        return np.real(result.point_positions(body.name, at))
+
+    out = []
+    for sp in result.system.model.springs:
+        if isinstance(sp, Spring):
+            A, B = track(sp.a, sp.at_a), track(sp.b, sp.at_b)
+            out.append((sp, np.stack([_zigzag(a, b, width) for a, b in zip(A, B)])))
+    return out

@@ -12,7 +12,13 @@ from matplotlib.patches import Polygon
 from ..model import Ground
 from ._common import _LINESTYLES, _SEQUENTIAL, _check_result, _new_axes, _units
 from ._sliders import _block
-from .motion import _checked_outlines, _mark_ground_joints, _slider_tracks, _time_indices
+from .motion import (
+    _checked_outlines,
+    _mark_ground_joints,
+    _slider_tracks,
+    _spring_tracks,
+    _time_indices,
+)
 
 
 def _snapshot_cmap():
@@ -54,7 +60,8 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
     closed polygon for three or more points, centre of mass to point for one). One line per
     body and snapshot, ``gid="snapshot:<i>:<body>"``. Colour runs from light (early) to dark
     (late) along reversed viridis; a colorbar gives the time. Ground joints are black
-    triangles; a prismatic joint is its guide line (grey) and a slider block per snapshot.
+    triangles; a prismatic joint is its guide line (grey) and a slider block per snapshot, a
+    spring-damper a zigzag between its points per snapshot.
     """
     u = _units(units)
     _check_result(result)
@@ -83,6 +90,10 @@ def snapshots(result, times=None, n=6, ax=None, target=None, *, units=None,
             ax.add_patch(Polygon(_block(P[k], d[k], sym), closed=True, fill=False,
                                  edgecolor=cmap(norm(t[k])), linewidth=1.2,
                                  gid=f"snapshot:{i}:{j.name}"))
+    for sp, Z in _spring_tracks(result, outlines):
+        for i, k in enumerate(idx):
+            ax.plot(Z[k, :, 0], Z[k, :, 1], "-", color=cmap(norm(t[k])), linewidth=0.8,
+                    gid=f"snapshot:{i}:{sp.name}")
     grounded = _mark_ground_joints(ax, result.system.model, gid="ground", label="ground joints")
     if magnify != 1.0:
         ax.set_title(f"beam deformation magnified {magnify:g}x")
