@@ -25,6 +25,7 @@ from .direct import (
     add_explicit_residual,
     csc_residual_transposed,
     csc_transposed_product,
+    part_scratch,
     parts_of,
     split_matrices,
 )
@@ -130,12 +131,13 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
     system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
     r_off, r_idx = touched
-    n_x = grad.shape[0]
-    m = grad.shape[1]
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
+    W = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
+    n_x = grad.shape[0]
+    m = grad.shape[1]
     for i in range(n_x):
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
@@ -154,7 +156,7 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
                        TAB[4][kn, ti])
             add_explicit_residual(Si, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                   tai_new, has_old, Q[j], V[j], A[j], L[j], w_old, tai_old,
-                                  scale, b0, b1, n_dof, R)
+                                  scale, b0, b1, n_dof, R, W)
             if forward:
                 ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
                           TAB[4][ko, 0])
@@ -162,7 +164,7 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
                           TAB[4][kn, 0])
                 add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                       ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
-                                      scale, b0, b1, n_dof, R0)
+                                      scale, b0, b1, n_dof, R0, W)
                 for r in rows:
                     d = ((R[r] - R0[r]) / pert[i]).real
                     for c in range(m):

@@ -13,7 +13,7 @@ items (the switch ``S.extra_items`` of ``kernels.system``).
 import numpy as np
 from numba import njit
 
-from .ffrf import body_jacobian, body_residual
+from .ffrf import body_jacobian, body_part_residual, body_residual
 from .forces import spring_jacobian, spring_residual
 from .joints import constraint_jacobian, constraint_residual
 from .loads import (
@@ -49,6 +49,22 @@ def add_residual_parts(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, 
                         parts.rows, n_dof, R)
     applied_residual(S.extra_items, S, q, v, wf, F, T, parts.loads, parts.torques,
                      parts.springs, R)
+
+
+@njit(cache=True, inline="always")
+def add_part_residual(S, parts, q, v, a, lam, wm, wl, wf, wcm, wcf, scale, b0, b1, c, cd, cdd,
+                      F, T, n_dof, R, W):
+    """:func:`add_residual_parts` at a cost that grows with ``parts``, not with the system
+    (the bodies through :func:`~morphlab.kernels.ffrf.body_part_residual`, whose scratch
+    ``W`` it takes): the pseudo-loads of one design variable."""
+    body_part_residual(S, q, v, a, wm, wf, parts, R, W)
+    # the calls pass the whole system: skipped where there is nothing to evaluate
+    if parts.rows.shape[0] > 0:
+        constraint_residual(S.extra_items, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd,
+                            cdd, parts.rows, n_dof, R)
+    if parts.loads.shape[0] + parts.torques.shape[0] + parts.springs.shape[0] > 0:
+        applied_residual(S.extra_items, S, q, v, wf, F, T, parts.loads, parts.torques,
+                         parts.springs, R)
 
 
 @njit(cache=True)

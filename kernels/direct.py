@@ -31,7 +31,8 @@ these kernels to every sensitivity column.
 import numpy as np
 from numba import njit
 
-from .assemble import add_residual_parts, fill_matrix
+from .assemble import add_part_residual, fill_matrix
+from .ffrf import PartScratch
 from .newmark import predict, update
 from .newton import solve_factored
 from .system import Parts, with_design
@@ -114,24 +115,35 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
 
 @njit(cache=True)
 def _explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0, w_old,
-                       ta_old, scale, b0, b1, n_dof, R):
+                       ta_old, scale, b0, b1, n_dof, R, W):
     """Overwrite ``R`` with the step residual over ``parts`` (both levels when ``has_old``)."""
     R[:] = 0.0
     add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0,
-                          w_old, ta_old, scale, b0, b1, n_dof, R)
+                          w_old, ta_old, scale, b0, b1, n_dof, R, W)
+
+
+@njit(cache=True, inline="always")
+def add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0,
+                          w_old, ta_old, scale, b0, b1, n_dof, R, W):
+    """Add the step residual over ``parts`` (both levels when ``has_old``) to ``R``; ``W``:
+    the scratch of :func:`~morphlab.kernels.ffrf.body_part_residual` (:func:`part_scratch`)."""
+    if has_old:
+        add_part_residual(S, parts, q0, v0, a0, l0, w_old[0], w_old[1], w_old[2], w_old[3],
+                          w_old[4], scale, b0, b1, ta_old[0], ta_old[1], ta_old[2], ta_old[3],
+                          ta_old[4], n_dof, R, W)
+    add_part_residual(S, parts, q1, v1, a1, l1, w_new[0], w_new[1], w_new[2], w_new[3],
+                      w_new[4], scale, b0, b1, ta_new[0], ta_new[1], ta_new[2], ta_new[3],
+                      ta_new[4], n_dof, R, W)
 
 
 @njit(cache=True)
-def add_explicit_residual(S, parts, q1, v1, a1, l1, w_new, ta_new, has_old, q0, v0, a0, l0,
-                          w_old, ta_old, scale, b0, b1, n_dof, R):
-    """Add the step residual over ``parts`` (both levels when ``has_old``) to ``R``."""
-    if has_old:
-        add_residual_parts(S, parts, q0, v0, a0, l0, w_old[0], w_old[1], w_old[2], w_old[3],
-                           w_old[4], scale, b0, b1, ta_old[0], ta_old[1], ta_old[2], ta_old[3],
-                           ta_old[4], n_dof, R)
-    add_residual_parts(S, parts, q1, v1, a1, l1, w_new[0], w_new[1], w_new[2], w_new[3],
-                       w_new[4], scale, b0, b1, ta_new[0], ta_new[1], ta_new[2], ta_new[3],
-                       ta_new[4], n_dof, R)
+def part_scratch(S, q, R):
+    """The scratch of :func:`add_explicit_residual` (:class:`~morphlab.kernels.ffrf.
+    PartScratch`) for the system ``S``, a state like ``q`` and a residual like ``R``."""
+    m = S.flex_dof.shape[0] + 1
+    return PartScratch(np.zeros((3, m), dtype=q.dtype), np.zeros((7, m), dtype=R.dtype),
+                       np.zeros(6, dtype=np.int64), np.zeros((3, 6), dtype=q.dtype),
+                       np.zeros(6, dtype=R.dtype))
 
 
 @njit(cache=True, inline="always")
@@ -189,6 +201,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
+    W = part_scratch(S, q1, R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
         pi, flex = parts_of(parts, i, flex_on)
@@ -204,7 +217,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                    TAB[4][k_new, ti])
         _explicit_residual(with_design(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
                            tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
-                           b0, b1, n_dof, R)
+                           b0, b1, n_dof, R, W)
         if forward:
             ta_old = (TAB[0][k_old, 0], TAB[1][k_old, 0], TAB[2][k_old, 0], TAB[3][k_old, 0],
                       TAB[4][k_old, 0])
@@ -212,7 +225,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                       TAB[4][k_new, 0])
             _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
                                s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
-                               R0)
+                               R0, W)
             for r in range(n):
                 rhs[r, i] -= ((R[r] - R0[r]) / pert[i]).real
         else:  # Re(R / (i h)) = Im(R) / h

@@ -32,6 +32,8 @@ body data (a sensitivity pseudo-load): temporaries that hold products with the d
 dtype of the output array (``R`` or ``data``), those that hold the state its own.
 """
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -73,11 +75,20 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
     Sv = np.zeros(m, dtype=dt)
     Sa = np.zeros(m, dtype=dt)
     Kd = np.zeros(m, dtype=dt)
-    idx = np.empty(6, dtype=np.int64)
-    ql = np.empty(6, dtype=q.dtype)
-    vl = np.empty(6, dtype=q.dtype)
-    al = np.empty(6, dtype=q.dtype)
-    dl = np.empty(6, dtype=dt)
+    _element_products(qf, vf, af, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
+                      elems, n_flex, full, Mq, Mv, Ma, Sq, Sv, Sa, Kd,
+                      np.empty(6, dtype=np.int64), np.empty(6, dtype=q.dtype),
+                      np.empty(6, dtype=q.dtype), np.empty(6, dtype=q.dtype),
+                      np.empty(6, dtype=dt))
+    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd
+
+
+@njit(cache=True, inline="always")
+def _element_products(qf, vf, af, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
+                      elems, n_flex, full, Mq, Mv, Ma, Sq, Sv, Sa, Kd, idx, ql, vl, al, dl):
+    """The element loop of :func:`_flex_products`: add the products of the elements ``elems``
+    to ``Mq ... Kd`` (n_flex + 1,) from the gathered coordinates ``qf, vf, af``; ``idx``
+    (6,) int64, ``ql, vl, al`` (6,) (``qf``'s dtype), ``dl`` (6,) (``Mq``'s): scratch."""
     for e in elems:
         beta = body_damp[elem_body[e]]
         for i in range(6):
@@ -118,7 +129,6 @@ def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, e
                     kd += Ke[i, j] * dl[j]
                 Ma[k] += ma
                 Kd[k] += kd
-    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd
 
 
 @njit(cache=True, inline="always")
@@ -194,13 +204,86 @@ def body_residual(S, q, v, a, wm, wf, parts, R):
     bodies, elems, flex_on = parts.bodies, parts.elements, parts.flex
     if bodies.shape[0] == 0:
         return
-    body_ref, body_scal, flex_off, flex_dof = S.body_ref, S.body_scal, S.flex_off, S.flex_dof
-    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
+    flex_dof = S.flex_dof
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
         q, v, a, flex_dof, S.elem_body, S.body_damp, S.elem_fdof, S.elem_M, S.elem_St, S.elem_K,
         elems, n_flex, np.bool_(False), R
     )
+    _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R)
+
+
+class PartScratch(NamedTuple):
+    """Scratch of :func:`body_part_residual`, made once per pseudo-load kernel call
+    (``kernels.direct.part_scratch``): ``q`` (3, n_flex + 1) the gathered coordinates (the
+    state's dtype), ``p`` (7, n_flex + 1) the element products (the residual's), both kept
+    zero between calls; ``idx`` (6,) int64, ``loc`` (3, 6) and ``dl`` (6,): one element's
+    indices, coordinates and damped coordinates."""
+
+    q: np.ndarray
+    p: np.ndarray
+    idx: np.ndarray
+    loc: np.ndarray
+    dl: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def body_part_residual(S, q, v, a, wm, wf, parts, R, W):
+    """:func:`body_residual` over a few parts (a sensitivity pseudo-load) at a cost that
+    grows with the parts, not with the system: the gathered coordinates and the element
+    products live in the scratch ``W`` (:class:`PartScratch`), whose arrays ``W.q`` and ``W.p``
+    are zero on entry and are left zero; only the coordinates of the listed elements and the
+    masked coordinates of the listed bodies are gathered. The numbers are
+    :func:`body_residual`'s, term by term."""
+    bodies, elems, flex_on = parts.bodies, parts.elements, parts.flex
+    if bodies.shape[0] == 0:
+        return
+    flex_off, flex_dof, elem_fdof = S.flex_off, S.flex_dof, S.elem_fdof
+    n_flex = flex_dof.shape[0]
+    Wq, Wp = W.q, W.p
+    qf, vf, af = Wq[0], Wq[1], Wq[2]
+    Mq, Mv, Ma, Sq, Sv, Sa, Kd = Wp[0], Wp[1], Wp[2], Wp[3], Wp[4], Wp[5], Wp[6]
+    for e in elems:
+        for i in range(6):
+            f = elem_fdof[e, i]
+            if f >= 0:
+                qf[f] = q[flex_dof[f]]
+                vf[f] = v[flex_dof[f]]
+                af[f] = a[flex_dof[f]]
+    for b in bodies:
+        for k in range(flex_off[b], flex_off[b + 1]):
+            if flex_on[k]:
+                qf[k] = q[flex_dof[k]]
+                vf[k] = v[flex_dof[k]]
+                af[k] = a[flex_dof[k]]
+    _element_products(qf, vf, af, S.elem_body, S.body_damp, elem_fdof, S.elem_M, S.elem_St,
+                      S.elem_K, elems, n_flex, np.bool_(False), Mq, Mv, Ma, Sq, Sv, Sa, Kd,
+                      W.idx, W.loc[0], W.loc[1], W.loc[2], W.dl)
+    _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R)
+    for e in elems:  # leave the scratch zero (the slot n_flex included)
+        for i in range(6):
+            f = elem_fdof[e, i]
+            _clear(Wq, Wp, f if f >= 0 else n_flex)
+    for b in bodies:
+        for k in range(flex_off[b], flex_off[b + 1]):
+            if flex_on[k]:
+                _clear(Wq, Wp, k)
+
+
+@njit(cache=True, inline="always")
+def _clear(Wq, Wp, k):
+    for r in range(Wq.shape[0]):
+        Wq[r, k] = 0.0
+    for r in range(Wp.shape[0]):
+        Wp[r, k] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R):
+    """The rows of the bodies ``bodies`` (:func:`body_residual`) from the gathered
+    coordinates and the element products."""
+    body_ref, body_scal, flex_off, flex_dof = S.body_ref, S.body_scal, S.flex_off, S.flex_dof
+    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
     gx = S.gravity[0]
     gy = S.gravity[1]
     for b in bodies:

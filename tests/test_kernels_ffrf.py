@@ -261,3 +261,39 @@ def test_body_jacobian_equals_complex_step_columns(system, state, case):
     np.testing.assert_allclose(J[~big], ref[~big], rtol=0, atol=1e-12 * scale)
     # a dense comparison: an entry missing from the compiled pattern would show up as a zero
     assert np.count_nonzero(big) > 3 * n  # many coupled entries, not just a diagonal
+
+
+def test_part_residual_equals_the_residual_over_the_same_parts(system, state):
+    """body_part_residual (a pseudo-load's few parts, on reused scratch) gives body_residual's
+    numbers over the same parts bit for bit, leaves its scratch zero, and so does not leak one
+    call's products into the next. Parts as a design variable forms them: some elements,
+    their bodies and coordinates, and the masked coordinates of a body whose invariants
+    changed; complex data as in a complex step (a real state)."""
+    from morphlab.kernels.direct import part_scratch
+    from morphlab.kernels.system import Parts
+
+    q, v, a = state
+    S = ml.compile.kernel_arrays(system, complex)
+    S = S._replace(elem_K=S.elem_K * (1 + 1e-3j), elem_M=S.elem_M * (1 - 2e-3j),
+                   flex_IS=S.flex_IS * (1 + 1e-3j), gravity=GRAVITY.astype(complex))
+    R0 = np.zeros(system.n_dof, dtype=complex)
+    W = part_scratch(S, q, R0)
+    rng = np.random.default_rng(7)
+    n_elem, n_flex = S.elem_fdof.shape[0], S.flex_dof.shape[0]
+    empty = np.zeros(0, np.int64)
+    for trial in range(12):
+        elems = np.sort(rng.choice(n_elem, size=1 + trial % 3, replace=False))
+        flex = np.zeros(n_flex, dtype=bool)
+        fd = S.elem_fdof[elems].ravel()
+        flex[fd[fd >= 0]] = True
+        flex[rng.random(n_flex) < 0.2] = True
+        owner = np.repeat(np.arange(S.body_ref.shape[0]), np.diff(S.flex_off))
+        bodies = np.unique(np.concatenate([S.elem_body[elems], owner[flex], [0]]))
+        parts = Parts(bodies.astype(np.int64), elems.astype(np.int64), flex, empty, empty,
+                      empty, empty)
+        R_full = np.zeros(system.n_dof, dtype=complex)
+        R_part = np.zeros(system.n_dof, dtype=complex)
+        ffrf.body_residual(S, q, v, a, 0.7, 0.9, parts, R_full)
+        ffrf.body_part_residual(S, q, v, a, 0.7, 0.9, parts, R_part, W)
+        assert np.array_equal(R_part, R_full), trial
+        assert not W.q.any() and not W.p.any(), trial
