@@ -74,7 +74,7 @@ def solve_factored_transposed(b, work, LU, piv, Lx, Ux, Ud, pattern):
                                 col_scale, b, b, work)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def newton_loop(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_dof, R_hist,
                 indices, indptr, linear, length, tol, max_iter, polish, R, data, LU, piv, Lx,
                 Ux, Ud, order, pattern, tau, hist):

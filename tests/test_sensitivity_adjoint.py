@@ -198,3 +198,39 @@ def test_adjoint_equals_direct_with_a_thickness_per_element(n_elements, scheme):
         scale = max(abs(g) for g in d.gradients[r].values())
         worst = max(abs(a.gradients[r][v] - d.gradients[r][v]) for v in p0)
         assert worst <= tol * scale, (r, worst / scale)
+
+
+def test_designs_compiled_during_the_primal_give_the_same_gradients(monkeypatch):
+    """On two or more cores the adjoint compiles the perturbed designs on a thread while the
+    primal runs (perturb.ComplexDesigns); on one core, before it. The same systems enter the
+    same sweep: the gradients agree bit for bit."""
+    from morphlab.sensitivity import api
+
+    build, p0, resp = adjoint_responses("mechanism")
+    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
+    a = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    monkeypatch.setattr(api.os, "cpu_count", lambda: 1)
+    b = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    assert a.stats["designs_in_background"] and not b.stats["designs_in_background"]
+    assert a.values == b.values and a.gradients == b.gradients
+
+
+def test_a_design_that_fails_on_its_thread_stops_the_primal(monkeypatch):
+    """A perturbed design that cannot be built raises its SensitivityError in the caller's
+    thread at the next step of the primal, not after the whole run."""
+    from morphlab.sensitivity import api
+
+    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
+    build, p0, resp = adjoint_responses("pendulum")
+
+    def fragile(p):
+        if isinstance(p["t"], complex):
+            raise ValueError("no complex thickness here")
+        return build(p)
+
+    steps = []
+    run = dict(RUN, t_end=5.0)  # 5000 steps
+    with pytest.raises(ml.SensitivityError, match="ValueError: no complex thickness"):
+        ml.sensitivities(fragile, p0, resp, method="adjoint",
+                         progress=lambda n, n_steps, t: steps.append(n), **run)
+    assert len(steps) < 4000, len(steps)  # 5000 if it waited for the end of the run

@@ -27,6 +27,7 @@ The state matrices ``R_q``, ``R_v`` come from the same kernels as the direct met
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Callable
 from itertools import groupby
 
 import numpy as np
@@ -40,7 +41,7 @@ from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
 from ..solve.timeloop import StepInfo, integrate
 from .histories import to_store
-from .perturb import CS_STEP, PseudoLoadData
+from .perturb import CS_STEP, ComplexDesigns, PseudoLoadData
 
 
 def _state_bytes(st) -> int:
@@ -56,8 +57,8 @@ class _Recorder:
     budget), and the backward sweep recomputes the steps of each segment from its checkpoint
     (:func:`_segments`), in compiled blocks whose stacked factors take ~1/8 of the budget."""
 
-    def __init__(self, budget: int, n_steps: int):
-        self.budget, self.n_steps = budget, n_steps
+    def __init__(self, budget: int, n_steps: int, check: Callable[[], None] | None = None):
+        self.budget, self.n_steps, self.check = budget, n_steps, check
         self.per_step = 0.0
         self.steps: list = []
         self.bytes = 0
@@ -67,6 +68,8 @@ class _Recorder:
         self.table = None
 
     def __call__(self, info: StepInfo) -> None:
+        if self.check is not None:  # a failed compile of the perturbed designs ends the run
+            self.check()
         self.stepper, self.table = info.stepper, info.table
         last = info.newton_history[-1, 1] if len(info.newton_history) else 0.0
         if self.K is not None:
@@ -291,32 +294,42 @@ def _data_terms(vjps: list[ResponseVJP], sys0: System, complex_systems: list) ->
     return out
 
 
-def adjoint_run(sys0: System, settings: Settings, responses: dict, complex_systems: list,
-                data: PseudoLoadData, *, refine: int = 1, refine_tol: float = 1e-12,
-                memory: int = 2**30, progress=False):
+def adjoint_run(sys0: System, settings: Settings, responses: dict, designs: ComplexDesigns,
+                data: Callable[[], PseudoLoadData], *, refine: int = 1,
+                refine_tol: float = 1e-12, memory: int = 2**30, progress=False):
     """The primal run, the responses' gradients and the backward sweep.
 
-    ``memory``: bytes of states and factorizations kept for the sweep; beyond them the run
-    keeps checkpoints and the sweep recomputes segments (:class:`_Recorder`). The primal keeps
-    only the histories the responses read. Returns ``(result, values, gradients, timing,
-    stats)`` with ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the complex
-    systems' variables."""
-    rec = _Recorder(memory, settings.n_steps)
+    ``designs``: the complex-step systems of the variables, which may still be compiling on a
+    thread while the primal runs (their error, if any, stops the primal at the next step);
+    ``data()``: the pseudo-load data formed from them, called after the primal. ``memory``:
+    bytes of states and factorizations kept for the sweep; beyond them the run keeps
+    checkpoints and the sweep recomputes segments (:class:`_Recorder`). The primal keeps only
+    the histories the responses read. Returns ``(result, values, gradients, timing, stats)``
+    with ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the variables."""
+    rec = _Recorder(memory, settings.n_steps, check=designs.check)
     t0 = _time.perf_counter()
     kept = to_store("auto", responses, sys0, settings)
-    res0 = integrate(sys0, settings, observer=rec, progress=progress, store=kept)
+    try:
+        res0 = integrate(sys0, settings, observer=rec, progress=progress, store=kept)
+    except BaseException:
+        designs.stop()
+        raise
     t_primal = _time.perf_counter() - t0
+    complex_systems = designs.result()
+    t_wait = _time.perf_counter() - t0 - t_primal
+    data = data()
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
     stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations,
-             "segment_steps": rec.K}
+             "segment_steps": rec.K, "designs_in_background": designs.background}
     sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats,
                    block_bytes=memory / 8, step_bytes=rec.per_step)
     for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
         sweep.segment(steps, prev)
     grad = sweep.grad + _data_terms(vjps, sys0, complex_systems)
     total = _time.perf_counter() - t0
-    timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total}
+    timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total,
+              "designs": designs.seconds, "designs_wait": t_wait}
     values = {k: vj.value for k, vj in zip(names, vjps)}
     gradients = {k: grad[:, r] for r, k in enumerate(names)}
     return res0, values, gradients, timing, stats

@@ -44,6 +44,7 @@ variable: the reference, no truncation error), ``"forward-difference"`` (n_x + 1
 from __future__ import annotations
 
 import numbers
+import os
 import time as _time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -55,7 +56,7 @@ from ..errors import MorphlabError, ResponseError, SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
 from .histories import HISTORIES
-from .perturb import CS_STEP, call_build, complex_systems, relative_steps
+from .perturb import CS_STEP, ComplexDesigns, call_build, relative_steps
 from .strategies import Auto, Setup, resolve
 
 
@@ -240,13 +241,17 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
 
     t_start = _time.perf_counter()
     sys0 = compile_model(call_build(build, p0, "at the nominal design"), record=True)
-    csys = complex_systems(build, p0, names, sys0, settings.t_end)
     steps = relative_steps(p0, names, getattr(strategy, "step", step))
-    setup = Setup(sys0, settings, build, p0, names, csys, dict(responses), store, progress,
+    setup = Setup(sys0, settings, build, p0, names, None, dict(responses), store, progress,
                   steps)
-    t_setup = _time.perf_counter() - t_start
     if isinstance(strategy, Auto):
         strategy = strategy.choose(setup)
+    # the adjoint needs the perturbed designs only after the primal: on two or more cores
+    # they compile on a thread meanwhile (perturb.ComplexDesigns)
+    background = getattr(strategy, "overlaps_designs", False) and (os.cpu_count() or 1) > 1
+    setup.designs = ComplexDesigns(build, p0, names, sys0, settings.t_end,
+                                   background=background)
+    t_setup = _time.perf_counter() - t_start
     run = strategy.run(setup)
     run.timing["setup"] = t_setup
 

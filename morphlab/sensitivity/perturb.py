@@ -10,6 +10,9 @@ model each variable changes, the time tables and the initial sensitivities.
 
 from __future__ import annotations
 
+import sys
+import threading
+import time
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -121,10 +124,13 @@ def call_build(build: Callable, p: dict, what: str):
 
 
 def complex_systems(build: Callable, p0: dict, names: list[str], sys0: System,
-                    t_end: float) -> list[System]:
-    """The complex-step designs of every variable; a variable ``build`` does not use raises."""
+                    t_end: float, stop: threading.Event | None = None) -> list[System]:
+    """The complex-step designs of every variable; a variable ``build`` does not use raises.
+    ``stop``: checked before each design (set, the compile ends early with what it has)."""
     out = []
     for v in names:
+        if stop is not None and stop.is_set():
+            break
         sys_p = compile_perturbed(build, p0, v, 1j * CS_STEP, sys0)
         if not uses_variable(sys_p, sys0, t_end):
             raise SensitivityError(
@@ -132,6 +138,73 @@ def complex_systems(build: Callable, p0: dict, names: list[str], sys0: System,
                 "state or load changes with it, so its gradient would be silently zero")
         out.append(sys_p)
     return out
+
+
+#: Python's thread switch interval [s] while the designs compile on a thread (see
+#: :meth:`ComplexDesigns._background`).
+SWITCH_INTERVAL = 1e-4
+
+
+class ComplexDesigns:
+    """The complex-step designs of every variable (:func:`complex_systems`), compiled now or,
+    with ``background=True``, on a thread while the caller runs the primal: the compile is
+    Python and the primal's Newton loop runs without the GIL (``kernels.newton``), so on two
+    cores the two overlap. :meth:`result` waits for them and raises what the compile raised;
+    :meth:`check` raises it as soon as it is known (the adjoint's step observer calls it, so a
+    bad variable stops the primal early); :meth:`stop` ends a compile nobody will wait for.
+    ``seconds``: the compile's own wall time."""
+
+    def __init__(self, build: Callable, p0: dict, names: list[str], sys0: System,
+                 t_end: float, *, background: bool = False):
+        self._args = (build, p0, names, sys0, t_end)
+        self._systems: list[System] | None = None
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self.seconds = 0.0
+        self.background = background
+        self._thread = None
+        if background:
+            self._thread = threading.Thread(target=self._background, daemon=True,
+                                            name="morphlab-designs")
+            self._thread.start()
+        else:
+            self._compile()
+            self.check()
+
+    def _compile(self) -> None:
+        t0 = time.perf_counter()
+        try:
+            self._systems = complex_systems(*self._args, stop=self._stop)
+        except BaseException as exc:  # handed to the caller's thread by check()/result()
+            self._error = exc
+        self.seconds = time.perf_counter() - t0
+
+    def _background(self) -> None:
+        # The primal's thread returns from each Newton loop (a millisecond) wanting the GIL
+        # back; at Python's default switch interval (5 ms) it would wait for it about that
+        # long every step. A short interval while the compile runs keeps it waiting little.
+        interval = sys.getswitchinterval()
+        sys.setswitchinterval(min(interval, SWITCH_INTERVAL))
+        try:
+            self._compile()
+        finally:
+            sys.setswitchinterval(interval)
+
+    def check(self) -> None:
+        """Raise the compile's error if it has failed (without waiting)."""
+        if self._error is not None:
+            raise self._error
+
+    def result(self) -> list[System]:
+        """The complex-step systems, in the order of the variables (waits for the thread)."""
+        if self._thread is not None:
+            self._thread.join()
+        self.check()
+        return self._systems
+
+    def stop(self) -> None:
+        """Ask a background compile to end after the design it is compiling."""
+        self._stop.set()
 
 
 def shifted_systems(build: Callable, p0: dict, names: list[str], sys0: System,

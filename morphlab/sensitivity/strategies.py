@@ -29,25 +29,37 @@ from ..solve.timeloop import integrate
 from .adjoint import adjoint_run
 from .direct import direct_run
 from .histories import HISTORIES, to_store
-from .perturb import CS_STEP, pseudo_load_data, relative_steps, shifted_systems
+from .perturb import (
+    CS_STEP,
+    ComplexDesigns,
+    pseudo_load_data,
+    relative_steps,
+    shifted_systems,
+)
 
 
 @dataclass
 class Setup:
     """What every strategy starts from: the nominal system, the settings, the parametric
-    model and design, the variables, their complex-step systems, the responses and the
-    histories to keep (``store``)."""
+    model and design, the variables, their complex-step systems (``designs``, perhaps still
+    compiling on a thread: :class:`~morphlab.sensitivity.perturb.ComplexDesigns`), the
+    responses and the histories to keep (``store``)."""
 
     sys0: System
     settings: Settings
     build: object
     p0: dict
     names: list
-    complex_systems: list
+    designs: ComplexDesigns | None
     responses: dict
     store: object = "auto"
     progress: bool = False
     steps: dict = field(default_factory=dict)
+
+    @property
+    def complex_systems(self) -> list:
+        """The complex-step systems of the variables (waits for a background compile)."""
+        return self.designs.result()
 
 
 class Run(NamedTuple):
@@ -215,12 +227,19 @@ class Adjoint:
     name = "adjoint"
     complex_results = False
 
+    #: The perturbed designs may compile on a thread during the primal run (they are first
+    #: needed by the backward sweep).
+    overlaps_designs = True
+
     def run(self, setup: Setup) -> Run:
         times = setup.settings.t_start + setup.settings.h * np.arange(setup.settings.n_steps + 1)
-        data = pseudo_load_data(setup.sys0, setup.complex_systems,
-                                np.full(len(setup.names), 1j * CS_STEP), times)
+
+        def data():
+            return pseudo_load_data(setup.sys0, setup.complex_systems,
+                                    np.full(len(setup.names), 1j * CS_STEP), times)
+
         res0, values, gradients, timing, stats = adjoint_run(
-            setup.sys0, setup.settings, setup.responses, setup.complex_systems, data,
+            setup.sys0, setup.settings, setup.responses, setup.designs, data,
             refine=self.refine, refine_tol=self.refine_tol, memory=self.memory,
             progress=setup.progress)
         return Run(res0, [], {}, timing, stats, values, gradients)
