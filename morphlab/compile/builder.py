@@ -72,6 +72,7 @@ class Builder:
         self.formed: dict | None = None
         self.bodies: dict[str, BodyInfo] = {}
         self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)
+        self._points: dict = {}  # (body name, at) -> what locate gave (read only)
         self.dof_names: list[str] = []
         self.q0: list = []
         self.v0: list = []
@@ -142,7 +143,12 @@ class Builder:
         ground), its position in the body frame and the frame's initial angle."""
         if isinstance(body, Ground):
             return -np.ones(6, dtype=np.int64), np.zeros(2, dtype=self.dtype), 0.0
-        return self.locate[body.name](at)
+        # a joint's point is looked up for its rows and again for its reaction sign
+        key = (body.name, tuple(np.asarray(at).ravel().tolist()))
+        hit = self._points.get(key)
+        if hit is None:
+            hit = self._points[key] = self.locate[body.name](at)
+        return hit
 
     def add_row(self, kind: int, joint, label: str, pa, pb, c0, profile: Profile | None = None,
                 beta=0.0):

@@ -11,6 +11,7 @@ nodal DOFs the reference condition removes); the compile step computes the geome
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -99,14 +100,15 @@ def _tangent_axis(node: int, last_node: int) -> tuple:
     return (node, node + 1) if node < last_node else (node - 1, node)
 
 
+@lru_cache(maxsize=64)
 def frame_specs(n_elem: int, k: int, reference: str | None,
-                reference_node: int | None) -> list[FrameSpec]:
+                reference_node: int | None) -> tuple[FrameSpec, ...]:
     """The :class:`FrameSpec` of each frame of a beam (see :func:`resolve` for the
-    arguments)."""
+    arguments). Kept for the last layouts: the perturbed designs of a sensitivity run
+    rebuild the same beams again and again."""
     if reference_node is not None:
         r = reference_node
-        return [FrameSpec(0, n_elem, r, _tangent_axis(r, n_elem),
-                          ((r, 0), (r, 1), (r, 2)))]
+        return (FrameSpec(0, n_elem, r, _tangent_axis(r, n_elem), ((r, 0), (r, 1), (r, 2))),)
     off = frame_offsets(n_elem, k)
     specs = []
     for f in range(k):
@@ -116,7 +118,7 @@ def frame_specs(n_elem: int, k: int, reference: str | None,
         else:
             o = s if reference == "first" else s + (e - s) // 2
             specs.append(FrameSpec(s, e, o, (o, o + 1), ((o, 0), (o, 1), (o, 2))))
-    return specs
+    return tuple(specs)
 
 
 def holding_frame(offsets: np.ndarray, node: int) -> int:
@@ -131,6 +133,6 @@ def drive_node(beam) -> int:
     return 0 if beam.reference_node is None else beam.reference_node
 
 
-def specs_of(beam) -> list[FrameSpec]:
+def specs_of(beam) -> tuple[FrameSpec, ...]:
     """The :class:`FrameSpec` of each frame of ``beam`` (a :class:`~morphlab.model.Beam`)."""
     return frame_specs(beam.n_elements, beam.frames, beam.reference, beam.reference_node)
