@@ -14,8 +14,12 @@ def test_bench_cases_run_and_tabulate(tmp_path, capsys):
                        "--out", str(out)]) == 0
     data = json.loads(out.read_text())
     m = data["cases"]["morphing"]
-    for key in ("primal", "direct", "direct_fd", "finite_difference", "primal_modified_newton"):
+    for key in ("primal", "direct", "direct_fd", "adjoint", "finite_difference",
+                "primal_modified_newton"):
         assert m[key]["median"] > 0
+    best = min(m["direct"]["median"], m["adjoint"]["median"])
+    assert m["ratios"]["finite_difference_over_best"] == pytest.approx(
+        m["finite_difference"]["median"] / best, rel=1e-12)
     # finite differences run n_x + 1 = 6 primal simulations, so they cost more than one
     assert m["ratios"]["finite_difference_over_primal"] > 1.0
     v = data["cases"]["variables"]

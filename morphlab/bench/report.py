@@ -16,6 +16,7 @@ def _morphing(m: dict) -> list[str]:
             ("primal", "one primal run: build, compile, simulate, 3 responses"),
             ("direct", "direct differentiation, 5 variables (values and gradients)"),
             ("direct_fd", "direct with FD partial derivatives (paper's variant)"),
+            ("adjoint", "discrete adjoint, 5 variables (values and gradients)"),
             ("finite_difference", "finite differences (n_x + 1 runs)"),
             ("primal_solver_only", "simulate a compiled model only (no build, no "
                                    "responses)"),
@@ -26,7 +27,11 @@ def _morphing(m: dict) -> list[str]:
         lines.append(f"| {label} | {s['median']:.4f} | {s['min']:.4f} | {s['max']:.4f} | "
                      f"{s['median'] / prim:.2f} |")
     rt = m["ratios"]
+    best = (f"; finite differences / best of direct and adjoint = "
+            f"{rt['finite_difference_over_best']:.2f}" if "finite_difference_over_best" in rt
+            else "")
     lines += ["", f"finite differences / direct = {rt['finite_difference_over_direct']:.2f}"
+                  f"{best}"
                   f"; direct / simulate-only = "
                   f"{rt.get('direct_over_primal_solver_only', float('nan')):.2f}; "
                   f"{m['steps']} steps, {m['newton_iterations_per_step']:.2f} Newton "

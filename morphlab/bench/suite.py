@@ -104,6 +104,7 @@ def case_morphing(repeats: int, quick: bool) -> dict:
         "primal_modified_newton": lambda: ml.simulate(system, newton="modified", **settings),
         "direct": sens("direct"),
         "direct_fd": sens("direct-fd"),
+        "adjoint": sens("adjoint"),
     }, repeats))
     out["finite_difference"] = timed(sens("forward-difference"), max(1, repeats // 2))[0]
     prim = out["primal"]["median"]
@@ -114,6 +115,10 @@ def case_morphing(repeats: int, quick: bool) -> dict:
         "finite_difference_over_primal": out["finite_difference"]["median"] / prim,
         "finite_difference_over_direct": (out["finite_difference"]["median"]
                                           / out["direct"]["median"]),
+        "adjoint_over_primal": out["adjoint"]["median"] / prim,
+        "finite_difference_over_best": (out["finite_difference"]["median"]
+                                        / min(out["direct"]["median"],
+                                              out["adjoint"]["median"])),
         "direct_over_primal_solver_only": out["direct"]["median"] / solver,
     }
     # where the extra time of a direct run goes (its own timers, median over runs)
