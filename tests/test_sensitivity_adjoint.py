@@ -234,3 +234,32 @@ def test_a_design_that_fails_on_its_thread_stops_the_primal(monkeypatch):
         ml.sensitivities(fragile, p0, resp, method="adjoint",
                          progress=lambda n, n_steps, t: steps.append(n), **run)
     assert len(steps) < 4000, len(steps)  # 5000 if it waited for the end of the run
+
+
+def test_concurrent_background_compiles_restore_the_switch_interval():
+    """Two sensitivity runs of one process overlapping (threads of a Dask worker): Python's
+    switch interval is short while either compiles and the caller's own afterwards."""
+    import sys
+    import threading
+
+    from morphlab.sensitivity import perturb
+
+    before = sys.getswitchinterval()
+    entered, release = threading.Barrier(3), threading.Event()
+
+    def hold():
+        with perturb._short_switch_interval():
+            entered.wait()
+            release.wait()
+
+    threads = [threading.Thread(target=hold) for _ in range(2)]
+    for t in threads:
+        t.start()
+    entered.wait()
+    # (Python keeps the interval in microseconds)
+    assert sys.getswitchinterval() == pytest.approx(min(before, perturb.SWITCH_INTERVAL),
+                                                    rel=1e-9)
+    release.set()
+    for t in threads:
+        t.join()
+    assert sys.getswitchinterval() == before

@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from typing import NamedTuple
 
 import numpy as np
@@ -145,6 +146,30 @@ def complex_systems(build: Callable, p0: dict, names: list[str], sys0: System,
 SWITCH_INTERVAL = 1e-4
 
 
+_SWITCH = {"lock": threading.Lock(), "users": 0, "saved": None}
+
+
+@contextmanager
+def _short_switch_interval():
+    """Python's thread switch interval at most :data:`SWITCH_INTERVAL` while any background
+    compile runs (counted, so that concurrent sensitivity runs of one process restore the
+    interval once, when the last ends). The primal's thread returns from each Newton loop (a
+    millisecond) wanting the GIL back; at the default interval (5 ms) it would wait about that
+    long every step."""
+    with _SWITCH["lock"]:
+        if _SWITCH["users"] == 0:
+            _SWITCH["saved"] = sys.getswitchinterval()
+            sys.setswitchinterval(min(_SWITCH["saved"], SWITCH_INTERVAL))
+        _SWITCH["users"] += 1
+    try:
+        yield
+    finally:
+        with _SWITCH["lock"]:
+            _SWITCH["users"] -= 1
+            if _SWITCH["users"] == 0:
+                sys.setswitchinterval(_SWITCH["saved"])
+
+
 class ComplexDesigns:
     """The complex-step designs of every variable (:func:`complex_systems`), compiled now or,
     with ``background=True``, on a thread while the caller runs the primal: the compile is
@@ -180,15 +205,8 @@ class ComplexDesigns:
         self.seconds = time.perf_counter() - t0
 
     def _background(self) -> None:
-        # The primal's thread returns from each Newton loop (a millisecond) wanting the GIL
-        # back; at Python's default switch interval (5 ms) it would wait for it about that
-        # long every step. A short interval while the compile runs keeps it waiting little.
-        interval = sys.getswitchinterval()
-        sys.setswitchinterval(min(interval, SWITCH_INTERVAL))
-        try:
+        with _short_switch_interval():
             self._compile()
-        finally:
-            sys.setswitchinterval(interval)
 
     def check(self) -> None:
         """Raise the compile's error if it has failed (without waiting)."""
