@@ -246,8 +246,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
                   steps)
     if isinstance(strategy, Auto):
         strategy = strategy.choose(setup)
-    # the adjoint and the direct method need the perturbed designs only after (some of) the
-    # primal: on two or more cores they compile on a thread meanwhile (perturb.ComplexDesigns)
+    # the adjoint needs the perturbed designs only after the primal: on two or more cores
+    # they compile on a thread meanwhile (perturb.ComplexDesigns)
     background = getattr(strategy, "overlaps_designs", False) and (os.cpu_count() or 1) > 1
     setup.designs = ComplexDesigns(build, p0, names, sys0, settings.t_end,
                                    background=background)

@@ -16,7 +16,6 @@ are solved from Python. The results do not depend on the block size.
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Callable
 from itertools import groupby
 
 import numpy as np
@@ -33,7 +32,7 @@ from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
 from ..solve.timeloop import StepInfo, integrate
 from .histories import HISTORIES, PerturbedResult
-from .perturb import ComplexDesigns, PseudoLoadData
+from .perturb import PseudoLoadData
 
 
 def _factor_bytes(lu) -> int:
@@ -44,26 +43,20 @@ def _factor_bytes(lu) -> int:
 
 
 class _DirectPass:
-    """The step observer of a direct run (module docstring). The pseudo-load data, and with it
-    the perturbed designs, are first needed when the first block is solved (``data()`` is
-    called then); ``check()`` is called at every step (a failed background compile of the
-    designs ends the run early)."""
+    """The step observer of a direct run (module docstring)."""
 
-    def __init__(self, sys0: System, n_steps: int, data: Callable[[], PseudoLoadData],
-                 hist: tuple, refine: int, refine_tol: float, block_bytes: int,
-                 designs: ComplexDesigns):
+    def __init__(self, sys0: System, n_steps: int, data: PseudoLoadData, hist: tuple,
+                 refine: int, refine_tol: float, block_bytes: int):
         self.sys0 = sys0
         self.n_steps = n_steps
-        self._data = data
-        self.data: PseudoLoadData | None = None
-        self.designs = designs
+        self.data = data
         self.hist = hist
         self.refine = refine
         self.refine_tol = refine_tol
         self.block_bytes = block_bytes
-        n_x = hist[0].shape[0]
+        n_x = data.dq0.shape[1]
         n, nnz = sys0.n, sys0.nnz
-        self.work = None
+        self.work = np.zeros((2, n), dtype=data.dtype)
         self.mats = np.zeros((6, nnz))
         self.zmat = np.zeros(nnz, dtype=np.complex128)
         self.J = np.zeros(nnz)
@@ -76,7 +69,6 @@ class _DirectPass:
                       "blocks": 0}
 
     def __call__(self, info: StepInfo) -> None:
-        self.designs.check()
         t0 = _time.perf_counter()
         if self.pending and info.coef is not self.info.coef:
             self.flush()
@@ -96,22 +88,9 @@ class _DirectPass:
             self.flush()
         self.stats["sensitivity_time"] += _time.perf_counter() - t0
 
-    def resolve(self) -> PseudoLoadData:
-        """The pseudo-load data (formed on the first call) and the initial sensitivities."""
-        if self.data is None:
-            t0 = _time.perf_counter()
-            self.designs.result()
-            t1 = _time.perf_counter()
-            self.data = d = self._data()
-            self.stats["designs_wait"] = t1 - t0
-            self.stats["pseudo_load_data"] = _time.perf_counter() - t1
-            self.hist[0][:, 0], self.hist[1][:, 0] = d.dq0.T, d.dv0.T
-            self.work = np.zeros((2, self.sys0.n), dtype=d.dtype)
-        return self.data
-
     def flush(self) -> None:
         """Solve the sensitivities of the pending steps."""
-        sys0, d, info = self.sys0, self.resolve(), self.info
+        sys0, d, info = self.sys0, self.data, self.info
         stp, coef = info.stepper, info.coef
         w_old, w_new = coef.arrays.w_old, coef.arrays.w_new
         has_old = coef.old is not None
@@ -182,19 +161,16 @@ class _DirectPass:
                              coef.arrays.upd)
 
 
-def direct_run(sys0: System, settings: Settings, designs: ComplexDesigns,
-               data: Callable[[], PseudoLoadData], kept=HISTORIES, *, refine: int = 1,
-               refine_tol: float = 1e-12, block_bytes: int = 64 * 2**20, progress=False):
+def direct_run(sys0: System, settings: Settings, psys: list[System], data: PseudoLoadData,
+               kept=HISTORIES, *, refine: int = 1, refine_tol: float = 1e-12,
+               block_bytes: int = 64 * 2**20, progress=False):
     """The primal run of ``sys0`` with the direct-differentiation observer.
 
-    ``designs``: the complex-step systems of the variables, which may still be compiling on a
-    thread while the primal runs (their error, if any, stops the primal at the next step);
-    ``data()``: the pseudo-load data, formed when the first block of steps is solved (with a
-    single block, after the primal). Returns ``(result, perturbed, state, timing, stats)``:
-    the primal Result, one complex :class:`~morphlab.sensitivity.histories.PerturbedResult`
-    per variable (on its complex-step system), the kept sensitivity histories
-    ``{name: (n_t, width, n_x)}``, the wall times and the observer's statistics."""
-    n_x = len(designs.names)
+    Returns ``(result, perturbed, state, timing, stats)``: the primal Result, one complex
+    :class:`~morphlab.sensitivity.histories.PerturbedResult` per variable (on its perturbed
+    system ``psys[i]``), the kept sensitivity histories ``{name: (n_t, width, n_x)}``, the
+    wall times and the observer's statistics."""
+    n_x = data.dq0.shape[1]
     n_steps = settings.n_steps
     n_dof, n_con = sys0.n_dof, sys0.n_con
 
@@ -206,27 +182,19 @@ def direct_run(sys0: System, settings: Settings, designs: ComplexDesigns,
 
     full = {"q": history("q", n_dof), "v": history("v", n_dof), "a": history("a", n_dof),
             "lam": history("lam", n_con)}
+    full["q"][:, 0], full["v"][:, 0] = data.dq0.T, data.dv0.T
     dg = np.zeros((n_x, 2, n_dof))
     by_variable = {k: full[k] for k in HISTORIES if k in kept}
     hist = (full["q"], full["v"], full["a"], dg, full["lam"])
-    observer = _DirectPass(sys0, n_steps, data, hist, refine, refine_tol, block_bytes,
-                           designs)
+    observer = _DirectPass(sys0, n_steps, data, hist, refine, refine_tol, block_bytes)
 
     t0 = _time.perf_counter()
-    try:
-        res0 = integrate(sys0, settings, observer=observer, progress=progress)
-    except BaseException:
-        designs.stop()
-        raise
-    observer.resolve()  # a run without steps solves no block
+    res0 = integrate(sys0, settings, observer=observer, progress=progress)
     total = _time.perf_counter() - t0
     stats = observer.stats
     stats["n_factorizations"] = res0.n_factorizations
-    stats["designs_in_background"] = designs.background
-    perturbed = [PerturbedResult(res0, s, by_variable, i)
-                 for i, s in enumerate(designs.result())]
+    perturbed = [PerturbedResult(res0, s, by_variable, i) for i, s in enumerate(psys)]
     timing = {"primal": total - stats["sensitivity_time"],
-              "sensitivity": stats["sensitivity_time"], "run": total,
-              "designs": designs.seconds, "designs_wait": stats.pop("designs_wait")}
+              "sensitivity": stats["sensitivity_time"], "run": total}
     state = {k: np.moveaxis(v, 0, -1) for k, v in by_variable.items()}  # (n_t, width, n_x)
     return res0, perturbed, state, timing, stats

@@ -182,7 +182,6 @@ class ComplexDesigns:
     def __init__(self, build: Callable, p0: dict, names: list[str], sys0: System,
                  t_end: float, *, background: bool = False):
         self._args = (build, p0, names, sys0, t_end)
-        self.names = list(names)
         self._systems: list[System] | None = None
         self._error: BaseException | None = None
         self._stop = threading.Event()

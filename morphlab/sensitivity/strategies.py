@@ -135,25 +135,18 @@ class Direct:
             raise SensitivityError(f"Direct: refine must be an integer >= 0, got "
                                    f"{self.refine!r}")
 
-    #: The perturbed designs may compile on a thread during the primal run (they are first
-    #: needed when the first block of steps is solved).
-    overlaps_designs = True
-
     def run(self, setup: Setup) -> Run:
         times = setup.settings.t_start + setup.settings.h * np.arange(setup.settings.n_steps + 1)
-
-        def data():
-            if self.partials == "complex-step":
-                psys = setup.complex_systems
-                pert = np.full(len(setup.names), 1j * CS_STEP)
-            else:
-                steps = relative_steps(setup.p0, setup.names, self.step)
-                psys = shifted_systems(setup.build, setup.p0, setup.names, setup.sys0, steps)
-                pert = np.array([steps[v] for v in setup.names])
-            return pseudo_load_data(setup.sys0, psys, pert, times)
-
+        if self.partials == "complex-step":
+            psys = setup.complex_systems
+            pert = np.full(len(setup.names), 1j * CS_STEP)
+        else:
+            steps = relative_steps(setup.p0, setup.names, self.step)
+            psys = shifted_systems(setup.build, setup.p0, setup.names, setup.sys0, steps)
+            pert = np.array([steps[v] for v in setup.names])
+        data = pseudo_load_data(setup.sys0, psys, pert, times)
         kept = to_store(setup.store, setup.responses, setup.sys0, setup.settings)
-        return Run(*direct_run(setup.sys0, setup.settings, setup.designs, data, kept,
+        return Run(*direct_run(setup.sys0, setup.settings, setup.complex_systems, data, kept,
                                refine=self.refine, refine_tol=self.refine_tol,
                                block_bytes=self.block_bytes, progress=setup.progress))
 
