@@ -35,12 +35,12 @@ from .system import with_design
 
 @njit(cache=True)
 def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1, bh2, gh,
-                  indices, indptr, n_dof, pc, upd, Hq, Hv, Ha, Hl, Bq, Bv, Ba, Bg, Bl, mats, Z,
+                  indices, indptr, n_dof, pc, upd, Hq, Hv, Ha, Hl, Bq, Bv, Ba, Bg, Bl, mats,
                   J, LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, MU, refined):
     """Steps ``K-1 .. 0`` of a block (module docstring). States ``(Q, V, A, L)[j + 1]`` are
     step ``j``'s, ``[0]`` the one before the block; ``k_new`` (K,) their time indices; the
-    factors stacked as in ``block_recursion``; ``mats`` (6, nnz) and ``Z`` (nnz,) complex
-    scratch of the split matrices, ``J`` (nnz,) of the exact matrix; ``refined`` (K,) gets the
+    factors stacked as in ``block_recursion``; ``mats`` (3, nnz) scratch of the split
+    matrices, ``J`` (nnz,) of the exact matrix; ``refined`` (K,) gets the
     relative residual of each refined solve. Returns the position of the initial solve in the
     block (the sweep stops there), or -1."""
     K = MU.shape[0]
@@ -66,7 +66,7 @@ def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1,
             for c in range(m):
                 zb[n_dof + i, c] = scale * Bl[i, c]
         split_matrices(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, scale, b0, b1,
-                       F[k_new[j]], D0, Dq, Dv, Z)
+                       F[k_new[j]], mats)
         mu = MU[j]
         mu[:, :] = zb
         solve_factored_transposed(mu, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
@@ -95,7 +95,7 @@ def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1,
         Bl[:, :] = 0.0
         if has_old:  # the paper's weighting: the old level's share
             split_matrices(S, Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, F[k_new[j] - 1],
-                           D0, Dq, Dv, Z)
+                           mats)
             csc_transposed_product(Dq, indices, indptr, n_dof, mu, Bq)
             csc_transposed_product(Dv, indices, indptr, n_dof, mu, Bv)
             r[:, :] = 0.0

@@ -81,26 +81,41 @@ def applied_residual(extra, S, q, v, wf, F, T, loads, torques, springs, R):
 
 
 @njit(cache=True)
-def applied_jacobian(extra, S, q, v, cf, bh2, gh, F, data):
-    """The Newton-matrix terms of :func:`applied_residual` (weight ``cf``) into ``data``."""
+def applied_jacobian(extra, S, q, v, cf, C, F, out):
+    """The Newton-matrix terms of :func:`applied_residual` (weight ``cf``) into ``out``
+    (m, nnz): they have no ``D0`` part, output ``r`` gets ``C[r][1] Dq + C[r][2] Dv``
+    (:func:`fill_split`)."""
     if extra is not None:
-        point_load_jacobian(S, q, cf, bh2, F, data)
-        line_load_jacobian(S, q, cf, bh2, F, data)
-        spring_jacobian(S, q, v, cf, bh2, gh, data)
+        for r in range(len(C)):
+            cq, cv = C[r][1], C[r][2]
+            if cq == 0.0 and cv == 0.0:
+                continue
+            point_load_jacobian(S, q, cf, cq, F, out[r])
+            line_load_jacobian(S, q, cf, cq, F, out[r])
+            spring_jacobian(S, q, v, cf, cq, cv, out[r])
+
+
+@njit(cache=True)
+def fill_split(S, q, v, a, lam, cm, cl, cf, ccm, ccf, scale, b0, b1, F, C, out):
+    """Overwrite ``out`` (m, nnz) with combinations of the derivatives of one time level's
+    residual share at the given state: the Newton matrix is ``D0 + bh2 Dq + gh Dv`` (the chain
+    rule through ``q = q_pred + bh2 a``, ``q' = qd_pred + gh a``: ``D0 = dR/d(a, lam/scale)``
+    with ``q, q'`` held, ``Dq = dR/dq``, ``Dv = dR/dq'``), and output ``r`` receives
+    ``C[r][0] D0 + C[r][1] Dq + C[r][2] Dv`` (``C``: m triples of floats). ``cm, cl, cf`` weight the
+    inertia, multiplier and force terms, ``ccm, ccf`` the constraint rows (paper eq. 30–33,
+    every derivative term). One pass over the model, whatever ``m``."""
+    out[:, :] = 0.0
+    body_jacobian(S, q, v, a, cm, cf, C, out)
+    constraint_jacobian(S.extra_items, S, q, v, a, lam, cl, ccm, ccf, C, scale, b0, b1, out)
+    applied_jacobian(S.extra_items, S, q, v, cf, C, F, out)
 
 
 @njit(cache=True)
 def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F, data):
-    """Overwrite ``data`` with ``d(residual)/d(a, lambda/scale)`` at the given state.
-
-    ``q = q_pred + bh2 a`` and ``q' = qd_pred + gh a``; ``cm, cl, cf`` weight the inertia,
-    multiplier and force terms, ``ccm, ccf`` the constraint rows (paper eq. 30–33, every
-    derivative term).
-    """
-    data[:] = 0.0
-    body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
-    constraint_jacobian(S.extra_items, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data)
-    applied_jacobian(S.extra_items, S, q, v, cf, bh2, gh, F, data)
+    """Overwrite ``data`` (nnz,) with the Newton matrix ``d(residual)/d(a, lambda/scale)`` at
+    the given state (:func:`fill_split` with ``C = ((1, bh2, gh),)``)."""
+    fill_split(S, q, v, a, lam, cm, cl, cf, ccm, ccf, scale, b0, b1, F, ((1.0, bh2, gh),),
+               data.reshape((1, data.shape[0])))
 
 
 @njit(cache=True, inline="always")
@@ -147,11 +162,7 @@ def step_residual(S, z, qh, vh, bh2, gh, scale, w, b0, b1, c, cd, cdd, F, T, n_d
 def step_matrix(S, z, qh, vh, bh2, gh, scale, w, b0, b1, F, data):
     """The exact Newton matrix at the step unknowns ``z`` into ``data`` (weights ``w``)."""
     q, v, a, lam = _step_state(z, qh, vh, bh2, gh, scale, qh.shape[0])
-    data[:] = 0.0
-    body_jacobian(S, q, v, a, w[0], w[2], bh2, gh, data)
-    constraint_jacobian(S.extra_items, S, q, v, a, lam, w[1], w[3], w[4], bh2, gh, scale, b0, b1,
-                        data)
-    applied_jacobian(S.extra_items, S, q, v, w[2], bh2, gh, F, data)
+    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], bh2, gh, scale, b0, b1, F, data)
 
 
 @njit(cache=True)

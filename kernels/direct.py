@@ -31,7 +31,7 @@ these kernels to every sensitivity column.
 import numpy as np
 from numba import njit
 
-from .assemble import add_part_residual, fill_matrix
+from .assemble import add_part_residual, fill_split
 from .ffrf import PartScratch
 from .newmark import predict, update
 from .newton import solve_factored
@@ -39,23 +39,14 @@ from .system import Parts, with_design
 
 
 @njit(cache=True)
-def split_matrices(S, q, v, a, lam, w, scale, b0, b1, F, D0, Dq, Dv, Z):
+def split_matrices(S, q, v, a, lam, w, scale, b0, b1, F, D):
     """Derivatives of one time level's residual share (weights ``w = (wm, wl, wf, wcm, wcf)``)
-    as CSC data over the step pattern: ``D0 = dR/d(a, lam/scale)`` with ``q, q'`` held,
-    ``Dq = dR/dq`` and ``Dv = dR/dq'`` (their multiplier columns are zero).
-
-    The Newton-matrix kernel returns ``D0 + bh2 Dq + gh Dv`` (the chain rule through
-    ``q = q_hat + bh2 a``, ``q' = v_hat + gh a``), linear in ``(bh2, gh)`` at a fixed state. Two
-    fills give the three: ``(bh2, gh) = (i, 0)`` on the real state, ``D0 + i Dq`` (only the
-    terms with ``bh2`` are complex), and ``(0, 1)``, ``D0 + Dv``: fewer fills than three
-    real ones, and ``Dq`` without the cancellation of a difference.
-    ``Z`` (nnz,) complex128: scratch for the complex fill."""
-    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], 1j, 0.0, scale, b0, b1, F, Z)
-    fill_matrix(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], 0.0, 1.0, scale, b0, b1, F, Dv)
-    for p in range(D0.shape[0]):
-        D0[p] = Z[p].real
-        Dq[p] = Z[p].imag
-        Dv[p] -= D0[p]
+    as CSC data over the step pattern, in one pass over the model
+    (:func:`~morphlab.kernels.assemble.fill_split`): ``D[0] = dR/d(a, lam/scale)`` with
+    ``q, q'`` held, ``D[1] = dR/dq`` and ``D[2] = dR/dq'`` (their multiplier columns are
+    zero). The Newton matrix is ``D[0] + bh2 D[1] + gh D[2]``. ``D`` (3, nnz) float64."""
+    fill_split(S, q, v, a, lam, w[0], w[1], w[2], w[3], w[4], scale, b0, b1, F,
+               ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), D)
 
 
 @njit(cache=True)
@@ -72,7 +63,7 @@ def _subtract_product(data, indices, indptr, n_cols, X, out):
 
 @njit(cache=True)
 def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_new, scale, b0,
-                b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, Z, J, rhs):
+                b1, bh2, gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, k, pc, mats, J, rhs):
     """Subtract the state part of every pseudo-load from ``rhs`` (n, n_x), and overwrite ``J``
     (nnz,) with the exact Newton matrix at the converged point (for the refinement).
 
@@ -80,13 +71,12 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     at ``t_n`` (read only when ``has_old``, the paper's weighting); ``F`` (n_t, n_load, 2):
     the point forces at every time; ``k_new`` and ``k``: the time indices of ``t_{n+1}`` and
     ``t_n``; ``DQ ... DLAM``: the sensitivity histories, (n_x, levels, width), level ``k`` is
-    the old one; ``mats`` (6, nnz): scratch for the split matrices of both levels, ``Z``
-    (nnz,) complex128 the scratch of their complex fill (:func:`split_matrices`). All other
-    arrays float64.
+    the old one; ``mats`` (6, nnz): scratch for the split matrices of both levels
+    (:func:`split_matrices`). All arrays float64.
     """
     n_x = rhs.shape[1]
     D0, Dq, Dv = mats[0], mats[1], mats[2]
-    split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F[k_new], D0, Dq, Dv, Z)
+    split_matrices(S, q1, v1, a1, l1, w_new, scale, b0, b1, F[k_new], mats[0:3])
     for p in range(J.shape[0]):
         J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
     # each history may keep only its last levels (see update_sensitivities)
@@ -100,7 +90,7 @@ def state_loads(S, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, F, k_n
     _subtract_product(Dv, indices, indptr, n_dof, dvh.T, rhs)
     if has_old:
         D0, Dq, Dv = mats[3], mats[4], mats[5]
-        split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F[k], D0, Dq, Dv, Z)
+        split_matrices(S, q0, v0, a0, l0, w_old, scale, b0, b1, F[k], mats[3:6])
         n_con = DLAM.shape[2]
         x0 = np.empty((n_dof + n_con, n_x))
         for i in range(n_x):
@@ -253,7 +243,7 @@ def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1
 
 @njit(cache=True)
 def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale, b0, b1, bh2,
-                    gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, pc, upd, mats, Z, J, E,
+                    gh, indices, indptr, n_dof, DQ, DV, DA, DG, DLAM, pc, upd, mats, J, E,
                     LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, r, x, work, refined):
     """The sensitivity recursion over a block of steps in one call, for steps whose factors are
     all dense (``LU``, ``piv``: (K, n, n), (K, n); ``morphlab.kernels.dense``) or all sparse
@@ -270,7 +260,7 @@ def block_recursion(S, Q, V, A, L, w_new, has_old, w_old, F, k_old, k_new, scale
         rhs = E[j]
         state_loads(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old, Q[j], V[j],
                     A[j], L[j], w_old, F, k_new[j], scale, b0, b1, bh2, gh, indices, indptr,
-                    n_dof, DQ, DV, DA, DG, DLAM, k_old[j], pc, mats, Z, J, rhs)
+                    n_dof, DQ, DV, DA, DG, DLAM, k_old[j], pc, mats, J, rhs)
         x[:, :] = rhs
         solve_factored(x, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
         if refine[j]:

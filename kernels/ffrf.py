@@ -333,28 +333,42 @@ def _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, 
             R[i] += wf * (Kd[k] - qvf - qgf)
 
 
+@njit(cache=True, inline="always")
+def add_split(out, C, p, x0, xq, xv):
+    """Add an entry ``x0 + bh2 xq + gh xv`` of the Newton matrix at position ``p`` of every
+    output: ``out[r, p] += C[r][0] x0 + C[r][1] xq + C[r][2] xv`` (``out`` (m, nnz), ``C`` m
+    triples; see :func:`body_jacobian`)."""
+    for r in range(len(C)):
+        c = C[r]
+        out[r, p] += c[0] * x0 + c[1] * xq + c[2] * xv
+
+
 @njit(cache=True)
-def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
-    """Add every body's block of ``d(residual)/d(a)`` to the CSC ``data`` array.
+def body_jacobian(S, q, v, a, cm, cf, C, out):
+    """Add every body's block of ``d(residual)/d(a)`` to the CSC data arrays ``out``.
 
     The residual block is ``cm M(q) a + cf F(q, q')`` with ``q = q_pred + bh2 a`` and
     ``q' = qd_pred + gh a``, so the block is ``cm (M + bh2 d(Ma)/dq) + cf (bh2 dF/dq + gh dF/dq')``
-    (paper eq. 30; every term included).
+    (paper eq. 30; every term included): ``D0 + bh2 Dq + gh Dv`` with ``D0 = cm M``,
+    ``Dq = cm d(Ma)/dq + cf dF/dq`` and ``Dv = cf dF/dq'``. Output ``r`` receives
+    ``C[r][0] D0 + C[r][1] Dq + C[r][2] Dv``: ``C = ((1, bh2, gh),)`` gives the Newton matrix,
+    the identity the three matrices in one pass (``kernels.direct.split_matrices``).
 
     Parameters
     ----------
     cm, cf : scalar
         Weights of the inertia and force terms (``1 - alpha_m``, ``1 - alpha_f``).
-    bh2, gh : scalar
-        ``beta h²`` and ``gamma h`` of the Newmark update.
+    C : tuple of m tuples of 3 floats
+        Coefficients of ``D0, Dq, Dv`` in each output (a tuple, not an array: its values stay
+        in registers while the outputs are written).
     S : SystemArrays
         The system (:mod:`morphlab.kernels.system`); ``S.border_off`` are the offsets of each
         body's border entries in ``S.border_map``: the 3 x 3 reference block, then the
         3 x n_f reference-row/flex-column entries, then the n_f x 3 flex-row/reference-column
         entries (row-major within each part); ``S.border_map``, ``S.elem_map`` the position in
-        ``data`` of every border and element entry (``-1``: skipped).
-    data : (nnz,), in/out
-        CSC data array of the Newton matrix.
+        the data arrays of every border and element entry (``-1``: skipped).
+    out : (m, nnz), in/out
+        CSC data arrays over the Newton matrix's pattern.
     """
     body_ref, body_scal, body_damp, flex_off, flex_dof = (S.body_ref, S.body_scal, S.body_damp,
                                                           S.flex_off, S.flex_dof)
@@ -366,12 +380,13 @@ def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
     n_flex = flex_dof.shape[0]
     qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
         q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-        np.arange(elem_fdof.shape[0]), n_flex, np.bool_(True), data
+        np.arange(elem_fdof.shape[0]), n_flex, np.bool_(True), out
     )
     all_flex = np.ones(n_flex, dtype=np.bool_)
     gx = gravity[0]
     gy = gravity[1]
-    blk = np.zeros((3, 3), dtype=data.dtype)
+    # blk[k]: the 3 x 3 reference block of D0 (k = 0), Dq (1) and Dv (2)
+    blk = np.zeros((3, 3, 3), dtype=out.dtype)
     for b in range(body_ref.shape[0]):
         iR0 = body_ref[b, 0]
         iR1 = body_ref[b, 1]
@@ -391,39 +406,35 @@ def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
         aRy = a[iR1]
         mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
         # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
-        for i in range(3):
-            for j in range(3):
-                blk[i, j] = 0.0
+        blk[:] = 0.0
         # mass
-        blk[0, 0] += cm * m
-        blk[1, 1] += cm * m
-        blk[0, 2] += cm * AIcx
-        blk[1, 2] += cm * AIcy
-        blk[2, 0] += cm * AIcx
-        blk[2, 1] += cm * AIcy
-        blk[2, 2] += cm * mthth
+        blk[0, 0, 0] = cm * m
+        blk[0, 1, 1] = cm * m
+        blk[0, 0, 2] = cm * AIcx
+        blk[0, 1, 2] = cm * AIcy
+        blk[0, 2, 0] = cm * AIcx
+        blk[0, 2, 1] = cm * AIcy
+        blk[0, 2, 2] = cm * mthth
         # d(M a)/d th
-        blk[0, 2] += cm * bh2 * (-Acx * tha + AIisa_x)
-        blk[1, 2] += cm * bh2 * (-Acy * tha + AIisa_y)
-        blk[2, 2] += cm * bh2 * (-(Acx * aRx + Acy * aRy))
+        blk[1, 0, 2] = cm * (-Acx * tha + AIisa_x)
+        blk[1, 1, 2] = cm * (-Acy * tha + AIisa_y)
+        blk[1, 2, 2] = cm * (-(Acx * aRx + Acy * aRy))
         # F = -Q_v - Q_g: d/d th and d/d th'
         # Q_v,R = th'^2 A c_u - 2 th' AĨ I_S q_f'
-        dqvR_dth_x = thd * thd * AIcx + 2.0 * thd * Aisv_x
-        dqvR_dth_y = thd * thd * AIcy + 2.0 * thd * Aisv_y
-        blk[0, 2] -= cf * bh2 * dqvR_dth_x
-        blk[1, 2] -= cf * bh2 * dqvR_dth_y
-        blk[0, 2] -= cf * gh * (2.0 * thd * Acx - 2.0 * AIisv_x)
-        blk[1, 2] -= cf * gh * (2.0 * thd * Acy - 2.0 * AIisv_y)
+        blk[1, 0, 2] -= cf * (thd * thd * AIcx + 2.0 * thd * Aisv_x)
+        blk[1, 1, 2] -= cf * (thd * thd * AIcy + 2.0 * thd * Aisv_y)
+        blk[2, 0, 2] = -cf * (2.0 * thd * Acx - 2.0 * AIisv_x)
+        blk[2, 1, 2] = -cf * (2.0 * thd * Acy - 2.0 * AIisv_y)
         # Q_v,th = -2 th' (I_0S + M_ff q_f).q_f'  -> d/d th' only
-        blk[2, 2] -= cf * gh * (-2.0 * (i0s_v + qMv))
+        blk[2, 2, 2] = cf * 2.0 * (i0s_v + qMv)
         # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
-        blk[2, 2] -= cf * bh2 * (-(Acx * gx + Acy * gy))
+        blk[1, 2, 2] += cf * (Acx * gx + Acy * gy)
         o = border_off[b]
         for i in range(3):
             for j in range(3):
                 p = border_map[o + 3 * i + j]
                 if p >= 0:
-                    data[p] += blk[i, j]
+                    add_split(out, C, p, blk[0, i, j], blk[1, i, j], blk[2, i, j])
         f0 = flex_off[b]
         nf = flex_off[b + 1] - f0
         o_rf = o + 9
@@ -437,61 +448,55 @@ def body_jacobian(S, q, v, a, cm, cf, bh2, gh, data):
             AIisx = -Aisy
             AIisy = Aisx
             # rows R (0, 1), th (2); column f_k
-            vR0 = cm * Aisx + cm * bh2 * AIisx * tha
-            vR1 = cm * Aisy + cm * bh2 * AIisy * tha
             # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
-            vR0 += -cf * bh2 * thd * thd * Aisx + cf * gh * 2.0 * thd * AIisx
-            vR1 += -cf * bh2 * thd * thd * Aisy + cf * gh * 2.0 * thd * AIisy
-            mthf = flex_I0IS[k] + Sq[k]
-            vth = cm * mthf
-            vth += cm * bh2 * (
-                AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k]) - Sa[k]
-            )
-            # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
-            # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
-            vth -= cf * bh2 * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy))
-            vth -= cf * gh * (-2.0 * thd * (flex_I0S[k] + Mq[k]))
             p = border_map[o_rf + kk]
             if p >= 0:
-                data[p] += vR0
+                add_split(out, C, p, cm * Aisx, cm * AIisx * tha - cf * thd * thd * Aisx,
+                          cf * 2.0 * thd * AIisx)
             p = border_map[o_rf + nf + kk]
             if p >= 0:
-                data[p] += vR1
+                add_split(out, C, p, cm * Aisy, cm * AIisy * tha - cf * thd * thd * Aisy,
+                          cf * 2.0 * thd * AIisy)
+            mthf = flex_I0IS[k] + Sq[k]
+            # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
+            # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
             p = border_map[o_rf + 2 * nf + kk]
             if p >= 0:
-                data[p] += vth
+                add_split(out, C, p, cm * mthf,
+                          cm * (AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k])
+                                - Sa[k]) - cf * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy)),
+                          cf * 2.0 * thd * (flex_I0S[k] + Mq[k]))
             # row f_k; columns R_x, R_y, th
-            fR0 = cm * Aisx
-            fR1 = cm * Aisy
-            # d(M a)_f/d th = (AĨ I_S_k).a_R
-            fth = cm * mthf + cm * bh2 * (AIisx * aRx + AIisy * aRy)
-            # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
-            fth -= cf * gh * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k])
-            # Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
-            fth -= cf * bh2 * (AIisx * gx + AIisy * gy)
             p = border_map[o_fr + 3 * kk]
             if p >= 0:
-                data[p] += fR0
+                add_split(out, C, p, cm * Aisx, 0.0, 0.0)
             p = border_map[o_fr + 3 * kk + 1]
             if p >= 0:
-                data[p] += fR1
+                add_split(out, C, p, cm * Aisy, 0.0, 0.0)
+            # d(M a)_f/d th = (AĨ I_S_k).a_R; Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
+            # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
             p = border_map[o_fr + 3 * kk + 2]
             if p >= 0:
-                data[p] += fth
-    # ---- flex-flex block, element by element
+                add_split(out, C, p, cm * mthf,
+                          cm * (AIisx * aRx + AIisy * aRy) - cf * (AIisx * gx + AIisy * gy),
+                          -cf * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k]))
+    # ---- flex-flex block, element by element: cm M_ff - cf bh2 th'^2 M_ff
+    # + cf (bh2 + gh beta) K + (cm bh2 th'' + cf gh 2 th') S̃
     for e in range(elem_fdof.shape[0]):
         b = elem_body[e]
         ith = body_ref[b, 2]
         thd = v[ith]
         tha = a[ith]
         beta = body_damp[b]
-        coefM = cm - cf * bh2 * thd * thd
-        coefK = cf * (bh2 + gh * beta)
-        coefS = cm * bh2 * tha + cf * gh * 2.0 * thd
-        for i in range(6):
-            for j in range(6):
-                p = elem_map[e, i, j]
-                if p >= 0:
-                    data[p] += coefM * elem_M[e, i, j] + coefK * elem_K[e, i, j] + coefS * elem_St[
-                        e, i, j
-                    ]
+        for r in range(len(C)):
+            c0, cq, cv = C[r]
+            coefM = c0 * cm - cq * cf * thd * thd
+            coefK = cf * (cq + cv * beta)
+            coefS = cq * cm * tha + cv * cf * 2.0 * thd
+            o_r = out[r]
+            for i in range(6):
+                for j in range(6):
+                    p = elem_map[e, i, j]
+                    if p >= 0:
+                        o_r[p] += (coefM * elem_M[e, i, j] + coefK * elem_K[e, i, j]
+                                   + coefS * elem_St[e, i, j])

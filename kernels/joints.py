@@ -340,9 +340,11 @@ def constraint_residual(extra, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, 
 
 
 @njit(cache=True)
-def constraint_jacobian(extra, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0, b1, data):
-    """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC ``data``
-    (``extra``: ``S.extra_items``, module docstring).
+def constraint_jacobian(extra, S, q, v, a, lam, cl, ccm, ccf, C, scale, b0, b1, out):
+    """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC data arrays
+    ``out`` (m, nnz) (``extra``: ``S.extra_items``, module docstring): the terms are
+    ``D0 + bh2 Dq + gh Dv``, output ``r`` receives ``C[r][0] D0 + C[r][1] Dq + C[r][2] Dv``
+    (``C``: m triples; ``kernels.ffrf.body_jacobian``).
 
     ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
     ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
@@ -364,24 +366,32 @@ def constraint_jacobian(extra, S, q, v, a, lam, cl, ccm, ccf, bh2, gh, scale, b0
                 # constraint row: d/da of wcm J a - wcf F_c
                 dFc_dq = -dvHv[side][j] - b1 * Hv[side][j] - b0 * gr
                 dFc_dv = -2.0 * Hv[side][j] - b1 * gr
-                val = ccm * (gr + bh2 * Ha[side][j]) - ccf * (bh2 * dFc_dq + gh * dFc_dv)
+                x0 = scale * ccm * gr
+                xq = scale * (ccm * Ha[side][j] - ccf * dFc_dq)
+                xv = -scale * ccf * dFc_dv
                 p = map_row[i, side, j]
                 if p >= 0:
-                    data[p] += scale * val
+                    for r in range(len(C)):
+                        out[r, p] += C[r][0] * x0 + C[r][1] * xq + C[r][2] * xv
                 p = map_col[i, side, j]
                 if p >= 0:
-                    data[p] += cl * scale * gr
-        coef = cl * bh2 * lam[i]
-        if extra is not None:
-            if kind == ROW_SLIDE:
-                _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, data)
+                    for r in range(len(C)):
+                        out[r, p] += C[r][0] * cl * scale * gr
+        # the Hessian terms bh2 cl lam H belong to Dq alone
+        for r in range(len(C)):
+            coef = cl * C[r][1] * lam[i]
+            if C[r][1] == 0.0:
                 continue
-        if kind != ROW_ANGLE:
-            for side in range(2):
-                if dofs[side][0] >= 0 or dofs[side][2] >= 0:
-                    sg = 1.0 if side == 0 else -1.0
-                    _add_hessian(kind, dofs[side], u[side][0], u[side][1], q, sg * coef, map_H,
-                                 i, side, data)
+            if extra is not None:
+                if kind == ROW_SLIDE:
+                    _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, out[r])
+                    continue
+            if kind != ROW_ANGLE:
+                for side in range(2):
+                    if dofs[side][0] >= 0 or dofs[side][2] >= 0:
+                        sg = 1.0 if side == 0 else -1.0
+                        _add_hessian(kind, dofs[side], u[side][0], u[side][1], q, sg * coef,
+                                     map_H, i, side, out[r])
 
 
 @njit(cache=True)

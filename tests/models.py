@@ -91,3 +91,42 @@ def check_step_matrix_by_complex_step(model, seed: int) -> None:
         col = R.imag / h
         assert np.abs(A[:, k] - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
             system.unknown_names[k]
+    _check_split_matrices(system, Sc, z, qh, vh, bh2, gh, scale, w, b0, b1, cplx, data)
+
+
+def _check_split_matrices(system, Sc, z, qh, vh, bh2, gh, scale, w, b0, b1, cplx, data):
+    """The split matrices of the sensitivity methods at the step's state: ``D0, Dq, Dv``
+    (one pass, ``split_matrices``) combine to the step matrix ``data`` (round-off: 1e-13 of
+    its largest entry), and each is the complex-step derivative of the level's residual share
+    with respect to ``(a, lam/scale)``, ``q`` and ``q'`` with the other two held (1e-9 of the
+    column's largest entry, as above); ``Dq`` and ``Dv`` have empty multiplier columns."""
+    from morphlab.kernels.assemble import add_residual
+    from morphlab.kernels.direct import split_matrices
+
+    from morphlab.compile import kernel_arrays
+
+    n, n_dof = system.n, system.n_dof
+    q, v, a = qh + bh2 * z[:n_dof], vh + gh * z[:n_dof], z[:n_dof]
+    lam = z[n_dof:] * scale
+    D = np.zeros((3, system.nnz))
+    split_matrices(kernel_arrays(system), q, v, a, lam, w, scale, b0, b1, cplx[5].real, D)
+    assert np.abs(D[0] + bh2 * D[1] + gh * D[2] - data).max() <= 1e-13 * np.abs(data).max()
+    h = 1e-30
+    for k in range(n):
+        sl = slice(system.indptr[k], system.indptr[k + 1])
+        for which in range(3):  # 0: a or lam/scale, 1: q, 2: q'
+            if k >= n_dof and which > 0:
+                assert not D[which, sl].any(), system.unknown_names[k]
+                continue
+            x = [q.astype(complex), v.astype(complex), a.astype(complex), lam.astype(complex)]
+            if k >= n_dof:
+                x[3][k - n_dof] += 1j * h * scale
+            else:
+                x[(2, 0, 1)[which]][k] += 1j * h
+            R = np.zeros(n, dtype=complex)
+            add_residual(Sc, *x, *w, scale, b0, b1, *cplx[2:], n_dof, R)
+            col = R.imag / h
+            got = np.zeros(n)
+            got[system.indices[sl]] = D[which, sl]
+            assert np.abs(got - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
+                (which, system.unknown_names[k])

@@ -182,7 +182,7 @@ def jacobian(system, q, v, a, cm, cf, bh2, gh):
     """body_jacobian scattered into the compiled CSC pattern, as a dense (n_dof, n_dof)."""
     data = np.zeros(system.nnz)
     S = ml.compile.kernel_arrays(system, float)._replace(gravity=GRAVITY.copy())
-    ffrf.body_jacobian(S, q, v, a, cm, cf, bh2, gh, data)
+    ffrf.body_jacobian(S, q, v, a, cm, cf, ((1.0, bh2, gh),), data.reshape(1, -1))
     n = system.n
     return sp.csc_matrix((data, system.indices, system.indptr), shape=(n, n)).toarray()
 

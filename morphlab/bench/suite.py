@@ -320,7 +320,6 @@ def case_floor(repeats: int, quick: bool) -> dict:
     b1, b5 = np.ones((n, 1)), np.ones((n, 5))
     w1, w5 = np.empty_like(b1), np.empty_like(b5)
     mats = np.zeros((3, nnz))
-    Z = np.zeros(nnz, dtype=np.complex128)
     rhs = np.zeros((n, len(names)))
     lam = st.lam / stp.scale
     w = coef.arrays.w_new
@@ -333,7 +332,7 @@ def case_floor(repeats: int, quick: bool) -> dict:
         "solve, 1 column": lambda: solve_factored(b1, w1, no_lu, no_piv, Lx, Ux, Ud, pattern),
         "solve, 5 columns": lambda: solve_factored(b5, w5, no_lu, no_piv, Lx, Ux, Ud, pattern),
         "split matrices (state part)": lambda: split_matrices(
-            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, *mats, Z),
+            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, mats),
         "partial derivatives, 5 variables": lambda: explicit_loads(
             data.S_nom, data.P, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
             old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,

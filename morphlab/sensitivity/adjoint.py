@@ -135,11 +135,9 @@ def _design_share(sys0: System, stp, data: PseudoLoadData, Q, V, A, L, coef, k_n
 
 def _split(stp, st, w, F, n_dof):
     """``(D0, Dq, Dv)`` CSC data of one level's residual share at the state ``st``."""
-    nnz = stp.system.nnz
-    D0, Dq, Dv = np.zeros(nnz), np.zeros(nnz), np.zeros(nnz)
-    split_matrices(stp.S, st.q, st.v, st.a, st.lam, w, stp.scale, stp.b0, stp.b1, F, D0, Dq,
-                   Dv, np.zeros(nnz, dtype=np.complex128))
-    return D0, Dq, Dv
+    D = np.zeros((3, stp.system.nnz))
+    split_matrices(stp.S, st.q, st.v, st.a, st.lam, w, stp.scale, stp.b0, stp.b1, F, D)
+    return D[0], D[1], D[2]
 
 
 def _tproduct(sys0: System, D, x, n_cols: int) -> np.ndarray:
@@ -207,8 +205,7 @@ class _Sweep:
             stp.S, Q, V, A, L, coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
             self.F, k_new, stp.scale, stp.b0, stp.b1, coef.bh2, coef.gh, sys0.indices,
             sys0.indptr, sys0.n_dof, coef.arrays.pc, coef.arrays.upd, *H, bar["q"], bar["v"],
-            bar["a"], bar["g"], bar["lam"], np.zeros((6, nnz)),
-            np.zeros(nnz, dtype=np.complex128), np.zeros(nnz),
+            bar["a"], bar["g"], bar["lam"], np.zeros((3, nnz)), np.zeros(nnz),
             *stacked_arrays([b[2] for b in block]), refine, self.refine, MU, refined)
         self.stats["refinement_residual"] += refined[refine].tolist()
         _design_share(sys0, stp, self.data, Q, V, A, L, coef, k_new, MU, self.grad)

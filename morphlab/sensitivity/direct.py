@@ -58,7 +58,6 @@ class _DirectPass:
         n, nnz = sys0.n, sys0.nnz
         self.work = np.zeros((2, n), dtype=data.dtype)
         self.mats = np.zeros((6, nnz))
-        self.zmat = np.zeros(nnz, dtype=np.complex128)
         self.J = np.zeros(nnz)
         self.r = np.zeros((n, n_x))
         self.pending: list = []  # (time index, state, factorization, last Newton correction)
@@ -139,7 +138,7 @@ class _DirectPass:
         block_recursion(info.stepper.S, Q[sl1], V[sl1], A[sl1], L[sl1], coef.arrays.w_new,
                         coef.old is not None, coef.arrays.w_old, info.table.F, k_old[sl],
                         k_new[sl], *self._common(), *self.hist, coef.arrays.pc,
-                        coef.arrays.upd, self.mats, self.zmat, self.J, E[sl], *factors,
+                        coef.arrays.upd, self.mats, self.J, E[sl], *factors,
                         refine[sl], self.refine, *scratch, refined[sl])
 
     def _python_step(self, j, Q, V, A, L, k_old, k_new, E, refine, refined):
@@ -149,7 +148,7 @@ class _DirectPass:
         state_loads(info.stepper.S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], coef.arrays.w_new,
                     coef.old is not None, Q[j], V[j], A[j], L[j], coef.arrays.w_old,
                     info.table.F, k, *self._common(), *self.hist, k_old[j], coef.arrays.pc,
-                    self.mats, self.zmat, self.J, rhs)
+                    self.mats, self.J, rhs)
         x = lu.solve(rhs)
         if refine[j]:
             for _ in range(self.refine):
