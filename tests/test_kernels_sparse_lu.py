@@ -192,3 +192,42 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
         x = lu.solve(b)
         assert np.max(np.abs(A @ x - b) / (abs(A) @ np.abs(x) + 1.0)) < 1e-10
     assert fills[0] < 4.0 < 10.0 < fills[1], fills
+
+
+def test_kept_factors_stack_without_a_copy_and_solve_as_before(monkeypatch):
+    """Compiled refactorizations in a row take consecutive rows of one chunk, so
+    ``stacked_arrays`` returns views of it (no copy) holding the same values as ``np.stack``
+    of the factors; factors that are not consecutive rows (one skipped, or a new chunk
+    started: a chunk of three factors here) are copied, with the same values. Each factor
+    still solves its own matrix after later ones are formed (exact to round-off)."""
+    A = _saddle_point()
+    n = A.shape[0]
+    fac = factorization.StepFactorization(A.indices.astype(np.int64),
+                                          A.indptr.astype(np.int64), n, np.float64, dense_max=0)
+    fac(A.data)
+    fac(A.data * 1.01)  # SuperLU twice: the row order is chosen
+    per = fac.row_order
+    _, Li, _, Ui = per.ready().patterns
+    monkeypatch.setattr(factorization, "CHUNK_BYTES", 3 * 8 * (Li.size + Ui.size + n))
+    per._chunk = None
+    scales = 1.02 + 0.01 * np.arange(7)
+    lus = [fac(A.data * s) for s in scales]
+    assert all(lu.group is per for lu in lus)
+    assert len({lu.chunk for lu in lus}) == 3  # 3 + 3 + 1 rows
+
+    def check(factors, shared):
+        stacks = factorization.stacked_arrays(factors)
+        for k, name in ((2, "Lx"), (3, "Ux"), (4, "Ud")):
+            np.testing.assert_array_equal(stacks[k], np.stack([getattr(f, name)
+                                                               for f in factors]))
+            assert np.shares_memory(stacks[k], getattr(factors[0], name)) == shared
+
+    check(lus[0:3], True)
+    check(lus[1:3], True)
+    check(lus[2:4], False)  # two chunks
+    check([lus[0], lus[2]], False)  # not consecutive
+    rng = np.random.default_rng(5)
+    b = rng.normal(size=n)
+    for s, lu in zip(scales, lus):
+        Ad = sp.csc_matrix((A.data * s, A.indices, A.indptr), shape=(n, n)).toarray()
+        np.testing.assert_allclose(lu.solve(b), np.linalg.solve(Ad, b), rtol=1e-9, atol=1e-12)

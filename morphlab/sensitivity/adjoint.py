@@ -166,12 +166,13 @@ class _Sweep:
 
     def segment(self, steps: list, prev) -> None:
         """Sweep one segment of steps (in time order; ``prev`` the state before them): runs
-        of steps whose factors a compiled kernel solves and that share coefficients in one
-        call each (:func:`~morphlab.kernels.adjoint.adjoint_block`), SuperLU's from Python."""
+        of steps whose factors a compiled kernel solves, stacked without a copy, and that
+        share coefficients in one call each (:func:`~morphlab.kernels.adjoint.adjoint_block`),
+        SuperLU's from Python."""
         runs = [(key, len(list(g))) for key, g in
-                groupby(steps, key=lambda st: (st[2].group, id(st[4])))]
+                groupby(steps, key=lambda st: (st[2].group, id(st[4]), st[2].chunk))]
         end = len(steps)
-        for (group, _), count in reversed(runs):
+        for (group, _, _), count in reversed(runs):
             start = end - count
             if group is None:
                 for j in range(end - 1, start - 1, -1):

@@ -110,7 +110,7 @@ class _DirectPass:
                            for k, _st, _lu, last in steps])
         refined = np.full(K, np.nan)
         j0 = 0
-        for group, run in groupby(steps, key=lambda s: s[2].group):
+        for (group, _), run in groupby(steps, key=lambda s: (s[2].group, s[2].chunk)):
             j1 = j0 + len(list(run))
             if group is not None:  # these steps' recursion in one compiled call
                 self._compiled(j0, j1, Q, V, A, L, k_old, k_new, E, refine, refined,

@@ -29,6 +29,9 @@ from ..kernels.sparse_lu import solve as sparse_solve
 from ..kernels.sparse_lu import solve_transposed as sparse_solve_transposed
 from .superlu import PIVOT_THRESHOLD, NaturalOrderLU, column_scaling, first_factor
 
+#: Bytes of one chunk of sparse factor values (:meth:`_RowOrder.empty_factors`).
+CHUNK_BYTES = 8 * 2**20
+
 #: Default of ``Settings.dense_max``: step matrices of at most this many unknowns are factored
 #: dense (the boundary measured against the compiled sparse refactorization: BENCHMARKS.md).
 DENSE_MAX = 24
@@ -40,11 +43,13 @@ class Factor:
     ``solve(b)`` returns ``A^-1 b`` and ``solve_transposed(b)`` ``A^-T b`` for ``b`` (n,) or
     (n, m), real or complex; ``nbytes`` is the memory the factorization keeps. Factors of one
     ``group`` (not None) can be solved in one compiled call: their ``kernel_args()`` stacked
-    by :func:`stacked_arrays` are what :func:`morphlab.kernels.newton.solve_factored` reads.
+    by :func:`stacked_arrays` are what :func:`morphlab.kernels.newton.solve_factored` reads;
+    consecutive factors of one ``chunk`` (not None) are stacked without a copy.
     """
 
     __slots__ = ()
     group = None
+    chunk = None
 
     def solve(self, b):  # pragma: no cover - interface
         raise NotImplementedError
@@ -126,6 +131,9 @@ class _RowOrder:
         self._solve_maps = (q[first], d[first], q, d)  # row_from, row_scale, col_to, col_scale
         self.patterns = None  # (Lp, Li, Up, Ui)
         self.solve_arrays = None  # ``pattern`` of morphlab.kernels.newton
+        self._chunk = None  # (Lx, Ux, Ud) rows for the next factors (empty_factors)
+        self._next = 0
+        self.last_row = -1
 
     def ready(self) -> _RowOrder:
         """Find the patterns of the factors (once) and return self."""
@@ -136,10 +144,20 @@ class _RowOrder:
         return self
 
     def empty_factors(self) -> tuple:
-        """Fresh ``(Lx, Ux, Ud)`` for one factorization."""
-        _, Li, _, Ui = self.ready().patterns
-        dt = self.work.dtype
-        return np.empty(Li.size, dt), np.empty(Ui.size, dt), np.empty(self.work.size, dt)
+        """Fresh ``(Lx, Ux, Ud)`` for one factorization: the next rows of a chunk of
+        :data:`CHUNK_BYTES`. Factorizations in a row get consecutive rows, so the factors the
+        sensitivity methods keep are stacked without a copy (:func:`stacked_arrays`); a chunk
+        is freed with the last factor in it. ``last_row``: the row of the factors returned."""
+        if self._chunk is None or self._next == self._chunk[0].shape[0]:
+            _, Li, _, Ui = self.ready().patterns
+            dt = self.work.dtype
+            sizes = (Li.size, Ui.size, self.work.size)
+            slots = max(1, CHUNK_BYTES // max(1, sum(sizes) * dt.itemsize))
+            self._chunk = tuple(np.empty((slots, k), dt) for k in sizes)
+            self._next = 0
+        i = self.last_row = self._next
+        self._next += 1
+        return tuple(c[i] for c in self._chunk)
 
     def factor(self, data, tau):
         """The factor of the matrix with CSC values ``data``, or None if a pivot fails the
@@ -149,23 +167,30 @@ class _RowOrder:
         Lp, Li, Up, Ui = self.patterns
         bad = refactor(data, gather, pair, b_indices, b_indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux,
                        Ud, work, tau)
-        return None if bad >= 0 else _SparseLU(self, Lx, Ux, Ud)
+        return None if bad >= 0 else _SparseLU(self, Lx, Ux, Ud, self.last_row)
 
 
 class _SparseLU(Factor):
-    """``P_r D A[q][:, q] D = L U`` by the compiled refactorization with a kept row order."""
+    """``P_r D A[q][:, q] D = L U`` by the compiled refactorization with a kept row order;
+    ``Lx, Ux, Ud`` are row ``row`` of a chunk (:meth:`_RowOrder.empty_factors`)."""
 
-    __slots__ = ("order", "Lx", "Ux", "Ud")
+    __slots__ = ("order", "Lx", "Ux", "Ud", "row")
 
-    def __init__(self, order: _RowOrder, Lx, Ux, Ud):
+    def __init__(self, order: _RowOrder, Lx, Ux, Ud, row: int):
         self.order = order
         self.Lx = Lx
         self.Ux = Ux
         self.Ud = Ud
+        self.row = row
 
     @property
     def group(self):
         return self.order
+
+    @property
+    def chunk(self) -> int | None:
+        """Identity of the chunk the values are rows of (:meth:`_RowOrder.empty_factors`)."""
+        return id(self.Lx.base)
 
     @property
     def nbytes(self) -> int:
@@ -243,8 +268,23 @@ def stacked_arrays(factors: list[Factor]) -> tuple:
     axis K (the other kind's stacks hold K empty factors; ``pattern`` None: dense): what
     :func:`morphlab.kernels.direct.block_recursion` reads."""
     args = [f.kernel_args() for f in factors]
-    stacks = tuple(np.stack([a[k] for a in args]) for k in range(5))
+    rows = _chunk_rows(factors)
+    if rows is None:
+        stacks = tuple(np.stack([a[k] for a in args]) for k in range(5))
+    else:  # consecutive rows of one chunk: views of it
+        f = factors[0]
+        stacks = (np.stack([a[0] for a in args]), np.stack([a[1] for a in args]),
+                  f.Lx.base[rows], f.Ux.base[rows], f.Ud.base[rows])
     return (*stacks, args[0][5])
+
+
+def _chunk_rows(factors: list[Factor]) -> slice | None:
+    """The rows of their chunk that ``factors`` are, if they are consecutive rows of one."""
+    first = factors[0]
+    if first.chunk is None or not all(
+            f.chunk == first.chunk and f.row == first.row + k for k, f in enumerate(factors)):
+        return None
+    return slice(first.row, first.row + len(factors))
 
 
 class StepFactorization:
@@ -334,7 +374,9 @@ class StepFactorization:
     def factor_of(self, arrays: tuple) -> Factor:
         """The :class:`Factor` the compiled loop left in ``arrays`` (:meth:`loop_arrays`)."""
         LU, piv, Lx, Ux, Ud, _, _ = arrays
-        return _DenseLU(LU, piv) if self.dense else _SparseLU(self._rows, Lx, Ux, Ud)
+        if self.dense:
+            return _DenseLU(LU, piv)
+        return _SparseLU(self._rows, Lx, Ux, Ud, self._rows.last_row)
 
     @property
     def row_order(self) -> _RowOrder | None:
