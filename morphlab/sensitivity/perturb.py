@@ -322,7 +322,8 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
     d = np.asarray(a) != np.asarray(b)
     if d.ndim == 0:
         return d
-    d = np.moveaxis(d, axis_keep, 0)
+    if axis_keep:
+        d = np.moveaxis(d, axis_keep, 0)
     return d.reshape(d.shape[0], -1).any(axis=1) if d.size else np.zeros(d.shape[0], bool)
 
 
@@ -342,7 +343,8 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
         if rows is None:
             return _changed(getattr(Si, name), getattr(S0, name))
         out = np.zeros(len(getattr(S0, name)), dtype=bool)
-        out[rows] = _changed(getattr(Si, name)[rows], getattr(S0, name)[rows])
+        if len(rows):
+            out[rows] = _changed(getattr(Si, name)[rows], getattr(S0, name)[rows])
         return out
 
     damp = changed("body_damp")
