@@ -30,7 +30,7 @@ from .direct import (
     split_matrices,
 )
 from .newton import solve_factored_transposed
-from .system import with_design
+from .system import set_design
 
 
 @njit(cache=True)
@@ -119,14 +119,15 @@ def _add(B, H, j):
 
 
 @njit(cache=True)
-def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale, b0,
-                           b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, MU, grad):
+def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale,
+                           b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, MU, grad):
     """The design's share of the adjoint gradient over a block of steps:
     ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial derivative of step
     ``j``'s residual along variable ``i`` formed as in
     :func:`~morphlab.kernels.direct.explicit_loads` (complex step or forward difference over
     the parts ``i`` changes, its time arrays table ``tab_of[i]`` of ``TAB``, the nominal's
-    table 0) and contracted with ``MU[j]`` (K, n, m) over the residual rows
+    table 0; design ``i`` written into ``W``, a copy of ``S``, from its rows ``D``) and
+    contracted with ``MU[j]`` (K, n, m) over the residual rows
     those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
     system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
@@ -134,7 +135,7 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
-    W = part_scratch(S, Q[0], R)
+    scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     n_x = grad.shape[0]
     m = grad.shape[1]
@@ -146,7 +147,7 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
         rows = r_idx[r_off[i]:r_off[i + 1]]
         for k in flex:
             flex_on[k] = True
-        Si = with_design(S, P, i)
+        set_design(W, S, D, i, True)
         ti = tab_of[i]
         for j in range(MU.shape[0]):
             ko, kn = k_old[j], k_new[j]
@@ -154,9 +155,9 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
                        TAB[4][ko, ti])
             tai_new = (TAB[0][kn, ti], TAB[1][kn, ti], TAB[2][kn, ti], TAB[3][kn, ti],
                        TAB[4][kn, ti])
-            add_explicit_residual(Si, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
+            add_explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                   tai_new, has_old, Q[j], V[j], A[j], L[j], w_old, tai_old,
-                                  scale, b0, b1, n_dof, R, W)
+                                  scale, b0, b1, n_dof, R, scr)
             if forward:
                 ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
                           TAB[4][ko, 0])
@@ -164,7 +165,7 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
                           TAB[4][kn, 0])
                 add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
                                       ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
-                                      scale, b0, b1, n_dof, R0, W)
+                                      scale, b0, b1, n_dof, R0, scr)
                 for r in rows:
                     d = ((R[r] - R0[r]) / pert[i]).real
                     for c in range(m):
@@ -178,5 +179,6 @@ def explicit_adjoint_block(S, P, parts, touched, Q, V, A, L, w_new, has_old, w_o
                     for c in range(m):
                         grad[i, c] -= d * MU[j, r, c]
                     R[r] = 0.0
+        set_design(W, S, D, i, False)
         for k in flex:
             flex_on[k] = False

@@ -35,7 +35,7 @@ from .assemble import add_part_residual, fill_split
 from .ffrf import PartScratch
 from .newmark import predict, update
 from .newton import solve_factored
-from .system import Parts, with_design
+from .system import Parts, set_design
 
 
 @njit(cache=True)
@@ -150,20 +150,23 @@ def parts_of(parts, i, flex_on):
 
 
 @njit(cache=True)
-def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old, scale,
-                   b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
+def explicit_loads(S, W, D, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old,
+                   scale, b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
-    ``rhs[:, i] -= Re[(R_i(P_i) - R_i(P_0)) / pert_i]``, ``R_i`` the step residual at the
-    converged state over variable ``i``'s parts, with its design data ``P`` at ``i`` and time
-    arrays table ``tab_of[i]`` of ``TAB``, or the nominal ``S`` and table 0. With a complex
-    step (``pert_i = i h``) this is ``Im R_i(P_i) / h`` and ``R_i(P_0)`` is not evaluated.
+    ``rhs[:, i] -= Re[(R_i(D_i) - R_i(D_0)) / pert_i]``, ``R_i`` the step residual at the
+    converged state over variable ``i``'s parts, with design ``i``'s data and time arrays table
+    ``tab_of[i]`` of ``TAB``, or the nominal ``S`` and table 0. With a complex step
+    (``pert_i = i h``) this is ``Im R_i(D_i) / h`` and ``R_i(D_0)`` is not evaluated.
 
     Parameters
     ----------
     S : SystemArrays
         Nominal system arrays in the dtype of ``work``.
-    P : DesignArrays
-        The design data of the n_x perturbed designs (:mod:`morphlab.kernels.system`).
+    W : SystemArrays
+        ``S`` with its own copy of the design data: design ``i`` is written into it while its
+        part is evaluated (:func:`~morphlab.kernels.system.set_design`), then ``S``'s again.
+    D : DesignRows
+        The rows of the design data each of the n_x perturbed designs changes.
     parts : tuple of 14 int64 arrays
         ``(offsets, indices)`` of the bodies, elements, flexible coordinates, constraint rows,
         loads, torques and spring-dampers each variable changes (CSR layout over the
@@ -191,7 +194,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
-    W = part_scratch(S, q1, R)
+    scr = part_scratch(S, q1, R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     for i in range(n_x):
         pi, flex = parts_of(parts, i, flex_on)
@@ -205,9 +208,10 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                    TAB[4][k_old, ti])
         tai_new = (TAB[0][k_new, ti], TAB[1][k_new, ti], TAB[2][k_new, ti], TAB[3][k_new, ti],
                    TAB[4][k_new, ti])
-        _explicit_residual(with_design(S, P, i), pi, s1[0], s1[1], s1[2], s1[3], w_new,
-                           tai_new, has_old, s0[0], s0[1], s0[2], s0[3], w_old, tai_old, scale,
-                           b0, b1, n_dof, R, W)
+        set_design(W, S, D, i, True)
+        _explicit_residual(W, pi, s1[0], s1[1], s1[2], s1[3], w_new, tai_new, has_old, s0[0],
+                           s0[1], s0[2], s0[3], w_old, tai_old, scale, b0, b1, n_dof, R, scr)
+        set_design(W, S, D, i, False)
         if forward:
             ta_old = (TAB[0][k_old, 0], TAB[1][k_old, 0], TAB[2][k_old, 0], TAB[3][k_old, 0],
                       TAB[4][k_old, 0])
@@ -215,7 +219,7 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
                       TAB[4][k_new, 0])
             _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
                                s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
-                               R0, W)
+                               R0, scr)
             for r in range(n):
                 rhs[r, i] -= ((R[r] - R0[r]) / pert[i]).real
         else:  # Re(R / (i h)) = Im(R) / h
@@ -227,8 +231,8 @@ def explicit_loads(S, P, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, 
 
 
 @njit(cache=True)
-def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB, tab_of,
-                   k_old, k_new, n_dof, pert, work, E):
+def explicit_block(S, W, D, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB,
+                   tab_of, k_old, k_new, n_dof, pert, work, E):
     """:func:`explicit_loads` of ``K`` consecutive steps in one call: step ``j`` goes from the
     state ``(Q[j], V[j], A[j], L[j])`` at time index ``k_old[j]`` to ``(Q[j+1], ...)`` at
     ``k_new[j]`` (state arrays (K + 1, width)); its explicit parts are subtracted from
@@ -236,7 +240,7 @@ def explicit_block(S, P, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1
     a run can form them for a block of steps at once (one call instead of K; each call
     passes ~75 arrays)."""
     for j in range(E.shape[0]):
-        explicit_loads(S, P, parts, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
+        explicit_loads(S, W, D, parts, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
                        Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, TAB, tab_of, k_old[j],
                        k_new[j], n_dof, pert, work, E[j])
 

@@ -7,9 +7,9 @@ fields come in three groups:
 * the **design data** (float64, or complex128 for a complex-step perturbation): everything a
   design variable can change — gravity, body invariants and damping, flexible invariants,
   element matrices, the body-frame points of joints and loads. :data:`DESIGN_FIELDS` lists
-  them once; a sensitivity run stacks them over its design variables in a
-  :class:`DesignArrays` and evaluates the residual of design ``i`` on
-  :func:`with_design` ``(S, P, i)``;
+  them once; a sensitivity run keeps, per design variable, only the rows of them its design
+  changes (:class:`DesignRows`), and evaluates the residual of design ``i`` on a working copy of
+  the nominal data with those rows written in and out again (:func:`set_design`);
 * the **topology** (int64): DOF numbers of bodies, flexible coordinates, elements, constraint
   rows and loads;
 * the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
@@ -122,29 +122,33 @@ class SystemArrays(NamedTuple):
     extra_items: bool | None
 
 
-class DesignArrays(NamedTuple):
-    """The design data of :class:`SystemArrays` for several designs: each field stacked
-    over the designs (leading axis n_x)."""
+class DesignRows(NamedTuple):
+    """The design data of several designs as the rows each changes: for every design field of
+    :class:`SystemArrays`, ``(off, rows, vals)`` with ``off`` (n_x + 1,) and ``rows`` (nnz,)
+    int64 (CSR over the designs) and ``vals`` (nnz, *row shape): design ``i`` holds
+    ``vals[k]`` in row ``rows[k]`` for ``off[i] <= k < off[i + 1]`` and the nominal's entry in
+    every other row. Memory grows with what the variables change, not with n_x times the
+    model."""
 
-    gravity: np.ndarray
-    body_scal: np.ndarray
-    body_damp: np.ndarray
-    flex_IS: np.ndarray
-    flex_I0S: np.ndarray
-    flex_I0IS: np.ndarray
-    elem_M: np.ndarray
-    elem_St: np.ndarray
-    elem_K: np.ndarray
-    con_u0: np.ndarray
-    load_u0: np.ndarray
-    spring_u0: np.ndarray
-    spring_par: np.ndarray
-    line_u0: np.ndarray
-    line_N: np.ndarray
+    gravity: tuple
+    body_scal: tuple
+    body_damp: tuple
+    flex_IS: tuple
+    flex_I0S: tuple
+    flex_I0IS: tuple
+    elem_M: tuple
+    elem_St: tuple
+    elem_K: tuple
+    con_u0: tuple
+    load_u0: tuple
+    spring_u0: tuple
+    spring_par: tuple
+    line_u0: tuple
+    line_N: tuple
 
 
 #: The fields of :class:`SystemArrays` a design variable can change (the floating-point ones).
-DESIGN_FIELDS = DesignArrays._fields
+DESIGN_FIELDS = DesignRows._fields
 
 
 class Parts(NamedTuple):
@@ -171,15 +175,36 @@ def all_parts(S):
                  np.arange(S.spring_kind.shape[0]))
 
 
+@njit(cache=True, inline="always")
+def _set_rows(w, s, d, i, on):
+    """Rows of design ``i`` (``d = (off, rows, vals)``) into ``w`` (``on``), or ``s``'s back."""
+    off, rows, vals = d
+    for k in range(off[i], off[i + 1]):
+        r = rows[k]
+        if on:
+            w[r] = vals[k]
+        else:
+            w[r] = s[r]
+
+
 @njit(cache=True)
-def with_design(S, P, i):
-    """``S`` with its design data replaced by design ``i`` of the stacked ``P``
-    (:class:`DesignArrays`)."""
-    return SystemArrays(P.gravity[i], P.body_scal[i], P.body_damp[i], P.flex_IS[i],
-                        P.flex_I0S[i], P.flex_I0IS[i], P.elem_M[i], P.elem_St[i], P.elem_K[i],
-                        P.con_u0[i], P.load_u0[i], P.spring_u0[i], P.spring_par[i],
-                        P.line_u0[i], P.line_N[i], S.body_ref, S.flex_off, S.flex_dof,
-                        S.elem_body, S.elem_fdof, S.con_kind, S.con_dofs, S.load_dofs,
-                        S.torque_dofs, S.spring_kind, S.spring_dofs, S.line_off, S.line_elem,
-                        S.border_off, S.border_map, S.elem_map, S.con_map_row, S.con_map_col,
-                        S.con_map_H, S.load_map, S.spring_map, S.line_map, S.extra_items)
+def set_design(W, S, D, i, on):
+    """Write the rows design ``i`` of ``D`` (:class:`DesignRows`) changes into the design data
+    of ``W`` (``on`` True), or the nominal ``S``'s entries of those rows back (``on`` False):
+    ``W`` is then design ``i``, or the nominal again. ``W`` and ``S`` have equal shapes and
+    dtypes; only the design data of ``W`` is written."""
+    _set_rows(W.gravity, S.gravity, D.gravity, i, on)
+    _set_rows(W.body_scal, S.body_scal, D.body_scal, i, on)
+    _set_rows(W.body_damp, S.body_damp, D.body_damp, i, on)
+    _set_rows(W.flex_IS, S.flex_IS, D.flex_IS, i, on)
+    _set_rows(W.flex_I0S, S.flex_I0S, D.flex_I0S, i, on)
+    _set_rows(W.flex_I0IS, S.flex_I0IS, D.flex_I0IS, i, on)
+    _set_rows(W.elem_M, S.elem_M, D.elem_M, i, on)
+    _set_rows(W.elem_St, S.elem_St, D.elem_St, i, on)
+    _set_rows(W.elem_K, S.elem_K, D.elem_K, i, on)
+    _set_rows(W.con_u0, S.con_u0, D.con_u0, i, on)
+    _set_rows(W.load_u0, S.load_u0, D.load_u0, i, on)
+    _set_rows(W.spring_u0, S.spring_u0, D.spring_u0, i, on)
+    _set_rows(W.spring_par, S.spring_par, D.spring_par, i, on)
+    _set_rows(W.line_u0, S.line_u0, D.line_u0, i, on)
+    _set_rows(W.line_N, S.line_N, D.line_N, i, on)

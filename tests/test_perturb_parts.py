@@ -61,3 +61,35 @@ def test_morphing_parts_from_the_record():
                              {**mo.DEFAULTS, **mo.GEOMETRY})
     _assert_equal_parts(cases)
     assert any(c[2] is not None for c in cases.values())
+
+
+@pytest.mark.parametrize("delta", [1e-30j, 1e-6])
+def test_design_rows_write_each_design_in_and_the_nominal_back(delta):
+    """The pseudo-load kernels evaluate design ``i`` on a working copy of the nominal data
+    with the rows design ``i`` changes written in (``set_design``) and written back after.
+    For every variable of the coupler (thickness groups, a node, a link point, the modulus,
+    the damping, the torque), by complex step and by a real step: after writing design ``i``
+    in, every design field equals design ``i``'s own compiled arrays bit for bit; after writing
+    it back, the nominal's; and the rows kept are far fewer than n_x copies of the data."""
+    from morphlab.kernels.system import DESIGN_FIELDS, set_design
+
+    build, p0 = (lambda p: coupler_model(p, "element")), P_COUPLER
+    sys0 = ml.compile_model(build(p0), record=True)
+    names = list(p0)
+    psys = [perturb.compile_perturbed(build, p0, v, delta * (1 if isinstance(delta, complex)
+                                                                else abs(p0[v]) or 1.0), sys0)
+            for v in names]
+    pert = np.array([delta] * len(names))
+    data = perturb.pseudo_load_data(sys0, psys, pert, TIMES)
+    W, S, D = data.W, data.S_nom, data.D
+    for i, s in enumerate(psys):
+        Si = kernel_arrays(s, data.dtype)
+        set_design(W, S, D, i, True)
+        for f in DESIGN_FIELDS:
+            assert np.array_equal(getattr(W, f), getattr(Si, f)), (names[i], f)
+        set_design(W, S, D, i, False)
+        for f in DESIGN_FIELDS:
+            assert np.array_equal(getattr(W, f), getattr(S, f)), (names[i], f)
+    kept = sum(v.nbytes for _, _, v in D)
+    full = len(names) * sum(getattr(S, f).nbytes for f in DESIGN_FIELDS)
+    assert kept < 0.2 * full

@@ -334,7 +334,7 @@ def case_floor(repeats: int, quick: bool) -> dict:
         "split matrices (state part)": lambda: split_matrices(
             stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, mats),
         "partial derivatives, 5 variables": lambda: explicit_loads(
-            data.S_nom, data.P, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
+            data.S_nom, data.W, data.D, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
             old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
             k - 1, k, n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), rhs),
     }

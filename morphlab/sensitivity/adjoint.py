@@ -126,7 +126,7 @@ def _design_share(sys0: System, stp, data: PseudoLoadData, Q, V, A, L, coef, k_n
     (``[0]`` the state before them), coefficients ``coef`` and time indices ``k_new``
     (:func:`~morphlab.kernels.adjoint.explicit_adjoint_block`)."""
     work = np.zeros((2, sys0.n), dtype=data.dtype)
-    explicit_adjoint_block(data.S_nom, data.P, data.parts, data.touched, Q, V, A, L,
+    explicit_adjoint_block(data.S_nom, data.W, data.D, data.parts, data.touched, Q, V, A, L,
                            coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
                            stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
                            np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, work,

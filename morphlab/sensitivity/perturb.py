@@ -23,7 +23,7 @@ from ..compile import System, compile_model, kernel_arrays, time_table
 from ..compile.incremental import fresh_rows
 from ..compile.system import SystemArrays, TimeTable
 from ..errors import MorphlabError, SensitivityError
-from ..kernels.system import DESIGN_FIELDS, DesignArrays
+from ..kernels.system import DESIGN_FIELDS, DesignRows
 from ..model import Model
 
 #: The complex step (Martins, Sturdza & Alonso 2003): exact to round-off for ``h`` this small.
@@ -235,8 +235,11 @@ def shifted_systems(build: Callable, p0: dict, names: list[str], sys0: System,
 class PseudoLoadData(NamedTuple):
     """What the direct method's pseudo-load kernels (:mod:`morphlab.kernels.direct`) read.
 
-    ``S_nom``: the nominal kernel arrays in the perturbation's dtype; ``P``: the design data of
-    the n_x perturbed designs; ``parts``: the parts of the model each variable changes (CSR
+    ``S_nom``: the nominal kernel arrays in the perturbation's dtype; ``W``: the same with its
+    own copy of the design data, into which the kernels write one design at a time; ``D``: the
+    rows of the design data each of the n_x perturbed designs changes
+    (:class:`~morphlab.kernels.system.DesignRows`); ``parts``: the parts of the model each
+    variable changes (CSR
     over the variables, :func:`pack_parts`); ``TAB``: the distinct time tables of the designs
     (leading axes (n_t, n_tab)), table 0 the nominal one, and ``tab_of`` (n_x,) int64 the table
     of each variable (0 for most: a thickness or a link point changes no profile or constant);
@@ -245,7 +248,8 @@ class PseudoLoadData(NamedTuple):
     """
 
     S_nom: SystemArrays
-    P: DesignArrays
+    W: SystemArrays
+    D: DesignRows
     parts: tuple
     TAB: TimeTable
     tab_of: np.ndarray
@@ -263,11 +267,13 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     dt = np.dtype(np.complex128 if complex_step else np.float64)
     S_nom = kernel_arrays(sys0, dt)  # integer tables shared with the primal's
     S_all = [kernel_arrays(s, dt) for s in psys]
-    P = DesignArrays(*(np.ascontiguousarray(np.stack([getattr(Sk, k) for Sk in S_all]))
-                       for k in DESIGN_FIELDS))
+    masks = [changed_rows(S_nom, Sk, fresh_rows(s)) for Sk, s in zip(S_all, psys)]
+    D = design_rows(S_nom, S_all, masks)
+    W = S_nom._replace(**{k: getattr(S_nom, k).copy() for k in DESIGN_FIELDS})
+    del S_all
     tab_of, tables = distinct_tables(sys0, psys, times, dt)
-    each = [variable_parts(sys0, S_nom, Sk, tables[0], tables[t] if t else None,
-                           fresh_rows(s)) for Sk, t, s in zip(S_all, tab_of, psys)]
+    each = [variable_parts(sys0, S_nom, None, tables[0], tables[t] if t else None, masks=m)
+            for m, t in zip(masks, tab_of)]
     parts = pack_parts(each)
     rows = [touched_rows(sys0, p) for p in each]
     off = np.zeros(len(rows) + 1, dtype=np.int64)
@@ -281,7 +287,7 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     else:
         dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
         dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
-    return PseudoLoadData(S_nom, P, parts, TAB, tab_of, pert, dt, dq0, dv0, touched)
+    return PseudoLoadData(S_nom, W, D, parts, TAB, tab_of, pert, dt, dq0, dv0, touched)
 
 
 def _same_time_data(a: System, b: System) -> bool:
@@ -327,25 +333,56 @@ def _changed(a, b, axis_keep: int = 0) -> np.ndarray:
     return d.reshape(d.shape[0], -1).any(axis=1) if d.size else np.zeros(d.shape[0], bool)
 
 
-def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeTable,
-                   tabi: TimeTable | None, fresh: dict | None = None) -> tuple:
+def changed_rows(S0: SystemArrays, Si: SystemArrays, fresh: dict | None = None) -> dict:
+    """Per design field: the rows (a mask along the first axis) where a perturbed design's
+    ``Si`` differs from the nominal ``S0``. ``fresh``: the rows of each array the design's
+    compile formed afresh (``incremental.fresh_rows``; the others are the nominal's), compared
+    alone; None: every row is compared."""
+    out = {}
+    for name in DESIGN_FIELDS:
+        a, b = getattr(Si, name), getattr(S0, name)
+        rows = fresh.get(name) if fresh is not None else None
+        if rows is None:
+            out[name] = _changed(a, b)
+        else:
+            out[name] = np.zeros(len(b), dtype=bool)
+            if len(rows):
+                out[name][rows] = _changed(a[rows], b[rows])
+    return out
+
+
+def design_rows(S0: SystemArrays, S_all: list, masks: list) -> DesignRows:
+    """The rows of the design data the designs ``S_all`` change (``masks`` of
+    :func:`changed_rows`), with their values (:class:`~morphlab.kernels.system.DesignRows`)."""
+    fields = []
+    for name in DESIGN_FIELDS:
+        idx = [np.flatnonzero(m[name]) for m in masks]
+        off = np.zeros(len(idx) + 1, dtype=np.int64)
+        off[1:] = np.cumsum([r.size for r in idx])
+        nominal = getattr(S0, name)
+        vals = np.empty((off[-1],) + nominal.shape[1:], dtype=nominal.dtype)
+        for k, (Sk, r) in enumerate(zip(S_all, idx)):
+            vals[off[k]:off[k + 1]] = getattr(Sk, name)[r]
+        rows = np.concatenate(idx).astype(np.int64) if idx else np.zeros(0, np.int64)
+        fields.append((off, rows, vals))
+    return DesignRows(*fields)
+
+
+def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays | None, tab0: TimeTable,
+                   tabi: TimeTable | None, fresh: dict | None = None, *,
+                   masks: dict | None = None) -> tuple:
     """The bodies, elements, flexible coordinates, constraint rows, loads, torques and
     spring-dampers whose data differ between the nominal arrays ``S0`` / time table ``tab0``
     and a perturbed design's ``Si`` / ``tabi`` (None: the nominal table): the parts its
     explicit pseudo-load must evaluate. A changed element brings its body and its coordinates;
-    a changed element entry of a line load brings its load. ``fresh``: the rows of each array
-    the design's compile formed afresh (``incremental.fresh_rows``; the others are the
-    nominal's), compared alone; None: every row is compared."""
+    a changed element entry of a line load brings its load. ``fresh``: as for
+    :func:`changed_rows`; ``masks``: its result, if already formed (``Si`` is then not read)."""
     n_body, n_elem = len(sys0.body_ref), len(sys0.elem_body)
+    if masks is None:
+        masks = changed_rows(S0, Si, fresh)
 
     def changed(name):
-        rows = fresh.get(name) if fresh is not None else None
-        if rows is None:
-            return _changed(getattr(Si, name), getattr(S0, name))
-        out = np.zeros(len(getattr(S0, name)), dtype=bool)
-        if len(rows):
-            out[rows] = _changed(getattr(Si, name)[rows], getattr(S0, name)[rows])
-        return out
+        return masks[name].copy()
 
     damp = changed("body_damp")
     elem = (changed("elem_M") | changed("elem_St") | changed("elem_K")
@@ -354,7 +391,7 @@ def variable_parts(sys0: System, S0: SystemArrays, Si: SystemArrays, tab0: TimeT
     fdof = sys0.elem_fdof[elem]
     flex[fdof[fdof >= 0]] = True
     body = changed("body_scal") | damp
-    if np.any(Si.gravity != S0.gravity):  # gravity acts on every body and every coordinate
+    if masks["gravity"].any():  # gravity acts on every body and every coordinate
         body[:] = True
         flex[:] = True
     owner = np.repeat(np.arange(n_body), np.diff(sys0.flex_off))  # body of each coordinate
