@@ -187,47 +187,10 @@ def explicit_loads(S, W, D, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l
     work : (2, n)
         Scratch residuals.
     """
-    n_x = rhs.shape[1]
-    n = rhs.shape[0]
-    s1 = (q1, v1, a1, l1)
-    s0 = (q0, v0, a0, l0)
-    forward = pert[0].imag == 0.0
-    R = work[0]
-    R0 = work[1]
-    scr = part_scratch(S, q1, R)
-    flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
-    for i in range(n_x):
-        pi, flex = parts_of(parts, i, flex_on)
-        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
-                + pi.springs.size) == 0:
-            continue  # the variable changes only the initial state
-        for k in flex:
-            flex_on[k] = True
-        ti = tab_of[i]
-        tai_old = (TAB[0][k_old, ti], TAB[1][k_old, ti], TAB[2][k_old, ti], TAB[3][k_old, ti],
-                   TAB[4][k_old, ti])
-        tai_new = (TAB[0][k_new, ti], TAB[1][k_new, ti], TAB[2][k_new, ti], TAB[3][k_new, ti],
-                   TAB[4][k_new, ti])
-        set_design(W, S, D, i, True)
-        _explicit_residual(W, pi, s1[0], s1[1], s1[2], s1[3], w_new, tai_new, has_old, s0[0],
-                           s0[1], s0[2], s0[3], w_old, tai_old, scale, b0, b1, n_dof, R, scr)
-        set_design(W, S, D, i, False)
-        if forward:
-            ta_old = (TAB[0][k_old, 0], TAB[1][k_old, 0], TAB[2][k_old, 0], TAB[3][k_old, 0],
-                      TAB[4][k_old, 0])
-            ta_new = (TAB[0][k_new, 0], TAB[1][k_new, 0], TAB[2][k_new, 0], TAB[3][k_new, 0],
-                      TAB[4][k_new, 0])
-            _explicit_residual(S, pi, s1[0], s1[1], s1[2], s1[3], w_new, ta_new, has_old,
-                               s0[0], s0[1], s0[2], s0[3], w_old, ta_old, scale, b0, b1, n_dof,
-                               R0, scr)
-            for r in range(n):
-                rhs[r, i] -= ((R[r] - R0[r]) / pert[i]).real
-        else:  # Re(R / (i h)) = Im(R) / h
-            h = pert[i].imag
-            for r in range(n):
-                rhs[r, i] -= R[r].imag / h
-        for k in flex:
-            flex_on[k] = False
+    explicit_block(S, W, D, parts, np.stack((q0, q1)), np.stack((v0, v1)), np.stack((a0, a1)),
+                   np.stack((l0, l1)), w_new, has_old, w_old, scale, b0, b1, TAB, tab_of,
+                   np.array([k_old]), np.array([k_new]), n_dof, pert, work,
+                   rhs.reshape((1, rhs.shape[0], rhs.shape[1])))
 
 
 @njit(cache=True)
@@ -237,12 +200,50 @@ def explicit_block(S, W, D, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0,
     state ``(Q[j], V[j], A[j], L[j])`` at time index ``k_old[j]`` to ``(Q[j+1], ...)`` at
     ``k_new[j]`` (state arrays (K + 1, width)); its explicit parts are subtracted from
     ``E[j]`` (K, n, n_x). The partial derivatives need only the converged primal states, so
-    a run can form them for a block of steps at once (one call instead of K; each call
-    passes ~75 arrays)."""
-    for j in range(E.shape[0]):
-        explicit_loads(S, W, D, parts, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, has_old,
-                       Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, TAB, tab_of, k_old[j],
-                       k_new[j], n_dof, pert, work, E[j])
+    a run forms them for a block of steps at once, variable by variable: design ``i`` is
+    written into ``W`` once for all the steps of the block."""
+    n_x = E.shape[2]
+    n = E.shape[1]
+    forward = pert[0].imag == 0.0
+    R = work[0]
+    R0 = work[1]
+    scr = part_scratch(S, Q[0], R)
+    flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
+    for i in range(n_x):
+        pi, flex = parts_of(parts, i, flex_on)
+        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
+                + pi.springs.size) == 0:
+            continue  # the variable changes only the initial state
+        for k in flex:
+            flex_on[k] = True
+        ti = tab_of[i]
+        set_design(W, S, D, i, True)
+        for j in range(E.shape[0]):
+            ko, kn = k_old[j], k_new[j]
+            tai_old = (TAB[0][ko, ti], TAB[1][ko, ti], TAB[2][ko, ti], TAB[3][ko, ti],
+                       TAB[4][ko, ti])
+            tai_new = (TAB[0][kn, ti], TAB[1][kn, ti], TAB[2][kn, ti], TAB[3][kn, ti],
+                       TAB[4][kn, ti])
+            _explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, tai_new,
+                               has_old, Q[j], V[j], A[j], L[j], w_old, tai_old, scale, b0, b1,
+                               n_dof, R, scr)
+            if forward:
+                ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
+                          TAB[4][ko, 0])
+                ta_new = (TAB[0][kn, 0], TAB[1][kn, 0], TAB[2][kn, 0], TAB[3][kn, 0],
+                          TAB[4][kn, 0])
+                _explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
+                                   ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
+                                   scale, b0, b1, n_dof, R0, scr)
+                for r in range(n):
+                    E[j, r, i] -= ((R[r] - R0[r]) / pert[i]).real
+            else:  # Re(R / (i h)) = Im(R) / h
+                h = pert[i].imag
+                for r in range(n):
+                    E[j, r, i] -= R[r].imag / h
+        set_design(W, S, D, i, False)
+        for k in flex:
+            flex_on[k] = False
 
 
 @njit(cache=True)

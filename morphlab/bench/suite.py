@@ -46,7 +46,7 @@ import numpy as np
 
 from ..compile import compile_model
 from ..kernels.assemble import step_matrix, step_residual
-from ..kernels.direct import explicit_loads, split_matrices
+from ..kernels.direct import explicit_block, split_matrices
 from ..kernels.newton import factor_matrix, solve_factored
 from ..sensitivity.perturb import CS_STEP, complex_systems, pseudo_load_data
 from ..solve.settings import Settings
@@ -276,6 +276,10 @@ def _per_call_us(fn, repeats: int, calls: int = 300) -> dict:
     return time_stats(times)
 
 
+#: Steps of the block whose partial derivatives the ``floor`` case times (per step).
+BLOCK = 32
+
+
 def case_floor(repeats: int, quick: bool) -> dict:
     """The least a direct run can cost against a primal run on the morphing model, from the
     compiled kernels of one converged step (the middle one) timed alone.
@@ -283,7 +287,8 @@ def case_floor(repeats: int, quick: bool) -> dict:
     A primal step makes ``iterations`` Newton iterations, each a residual, a Newton matrix, its
     factorization and a one-column solve. A sensitivity step needs at least the matrices of
     the state part at the converged point (:func:`morphlab.kernels.direct.split_matrices`),
-    the partial derivatives of the 5 variables (``explicit_loads``) and one 5-column solve;
+    the partial derivatives of the 5 variables (``explicit_block``, per step of a block of
+    :data:`BLOCK` steps, as a run forms them) and one 5-column solve;
     the products with the histories, the Newmark update and the refinement are left out.
     ``floor = 1 + sensitivity / primal`` is direct/primal with no Python, set-up or responses
     on either side and nothing but those kernels in the sensitivity step; below it,
@@ -320,7 +325,10 @@ def case_floor(repeats: int, quick: bool) -> dict:
     b1, b5 = np.ones((n, 1)), np.ones((n, 5))
     w1, w5 = np.empty_like(b1), np.empty_like(b5)
     mats = np.zeros((3, nnz))
-    rhs = np.zeros((n, len(names)))
+    # a block of BLOCK steps, each from the state before step k to the state after it
+    states = [np.stack([a] + [b] * BLOCK) for a, b in ((old.q, st.q), (old.v, st.v),
+                                                       (old.a, st.a), (old.lam, st.lam))]
+    E = np.zeros((BLOCK, n, len(names)))
     lam = st.lam / stp.scale
     w = coef.arrays.w_new
     kernels = {
@@ -333,12 +341,15 @@ def case_floor(repeats: int, quick: bool) -> dict:
         "solve, 5 columns": lambda: solve_factored(b5, w5, no_lu, no_piv, Lx, Ux, Ud, pattern),
         "split matrices (state part)": lambda: split_matrices(
             stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, mats),
-        "partial derivatives, 5 variables": lambda: explicit_loads(
-            data.S_nom, data.W, data.D, data.parts, st.q, st.v, st.a, st.lam, w, False, old.q,
-            old.v, old.a, old.lam, w, stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
-            k - 1, k, n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), rhs),
+        "partial derivatives, 5 variables": lambda: explicit_block(
+            data.S_nom, data.W, data.D, data.parts, *states, w, False, w, stp.scale, stp.b0,
+            stp.b1, data.TAB, data.tab_of, np.full(BLOCK, k - 1), np.full(BLOCK, k), n_dof,
+            data.pert, np.zeros((2, n), dtype=np.complex128), E),
     }
     us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}
+    us["partial derivatives, 5 variables"] = {  # per step of the block
+        key: v / BLOCK if key != "runs" else v
+        for key, v in us["partial derivatives, 5 variables"].items()}
     med = {name: v["median"] for name, v in us.items()}
     iters = float(np.mean(res.newton_iterations[1:]))
     primal = iters * (med["residual"] + med["matrix"] + med["factorization"]
