@@ -28,6 +28,7 @@ from .direct import (
     part_scratch,
     parts_of,
     split_matrices,
+    table_at,
 )
 from .newton import solve_factored_transposed
 from .system import set_design
@@ -151,21 +152,14 @@ def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, 
         ti = tab_of[i]
         for j in range(MU.shape[0]):
             ko, kn = k_old[j], k_new[j]
-            tai_old = (TAB[0][ko, ti], TAB[1][ko, ti], TAB[2][ko, ti], TAB[3][ko, ti],
-                       TAB[4][ko, ti])
-            tai_new = (TAB[0][kn, ti], TAB[1][kn, ti], TAB[2][kn, ti], TAB[3][kn, ti],
-                       TAB[4][kn, ti])
             add_explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
-                                  tai_new, has_old, Q[j], V[j], A[j], L[j], w_old, tai_old,
-                                  scale, b0, b1, n_dof, R, scr)
+                                  table_at(TAB, kn, ti), has_old, Q[j], V[j], A[j], L[j],
+                                  w_old, table_at(TAB, ko, ti), scale, b0, b1, n_dof, R, scr)
             if forward:
-                ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
-                          TAB[4][ko, 0])
-                ta_new = (TAB[0][kn, 0], TAB[1][kn, 0], TAB[2][kn, 0], TAB[3][kn, 0],
-                          TAB[4][kn, 0])
                 add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
-                                      ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
-                                      scale, b0, b1, n_dof, R0, scr)
+                                      table_at(TAB, kn, 0), has_old, Q[j], V[j], A[j], L[j],
+                                      w_old, table_at(TAB, ko, 0), scale, b0, b1, n_dof, R0,
+                                      scr)
                 for r in rows:
                     d = ((R[r] - R0[r]) / pert[i]).real
                     for c in range(m):

@@ -137,6 +137,12 @@ def part_scratch(S, q, R):
 
 
 @njit(cache=True, inline="always")
+def table_at(TAB, k, t):
+    """The time arrays ``(c, cd, cdd, F, T)`` of table ``t`` of ``TAB`` at time index ``k``."""
+    return (TAB[0][k, t], TAB[1][k, t], TAB[2][k, t], TAB[3][k, t], TAB[4][k, t])
+
+
+@njit(cache=True, inline="always")
 def parts_of(parts, i, flex_on):
     """:class:`~morphlab.kernels.system.Parts` of variable ``i`` from the packed ``parts``
     (CSR over the variables, see :func:`explicit_loads`), with the mask ``flex_on``, and the
@@ -220,21 +226,13 @@ def explicit_block(S, W, D, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0,
         set_design(W, S, D, i, True)
         for j in range(E.shape[0]):
             ko, kn = k_old[j], k_new[j]
-            tai_old = (TAB[0][ko, ti], TAB[1][ko, ti], TAB[2][ko, ti], TAB[3][ko, ti],
-                       TAB[4][ko, ti])
-            tai_new = (TAB[0][kn, ti], TAB[1][kn, ti], TAB[2][kn, ti], TAB[3][kn, ti],
-                       TAB[4][kn, ti])
-            _explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, tai_new,
-                               has_old, Q[j], V[j], A[j], L[j], w_old, tai_old, scale, b0, b1,
-                               n_dof, R, scr)
+            _explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
+                               table_at(TAB, kn, ti), has_old, Q[j], V[j], A[j], L[j], w_old,
+                               table_at(TAB, ko, ti), scale, b0, b1, n_dof, R, scr)
             if forward:
-                ta_old = (TAB[0][ko, 0], TAB[1][ko, 0], TAB[2][ko, 0], TAB[3][ko, 0],
-                          TAB[4][ko, 0])
-                ta_new = (TAB[0][kn, 0], TAB[1][kn, 0], TAB[2][kn, 0], TAB[3][kn, 0],
-                          TAB[4][kn, 0])
                 _explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
-                                   ta_new, has_old, Q[j], V[j], A[j], L[j], w_old, ta_old,
-                                   scale, b0, b1, n_dof, R0, scr)
+                                   table_at(TAB, kn, 0), has_old, Q[j], V[j], A[j], L[j],
+                                   w_old, table_at(TAB, ko, 0), scale, b0, b1, n_dof, R0, scr)
                 for r in range(n):
                     E[j, r, i] -= ((R[r] - R0[r]) / pert[i]).real
             else:  # Re(R / (i h)) = Im(R) / h
