@@ -130,3 +130,15 @@ def test_kernels_import_nothing_of_morphlab():
 def test_every_stage_is_a_folder_or_module(stage):
     base = ROOT / "kernels" if stage == "kernels" else ROOT / "morphlab" / stage
     assert base.is_dir() or base.with_suffix(".py").is_file(), stage
+
+
+def test_every_package_is_installed():
+    """pyproject.toml lists each package of the tree, so a wheel (``pip install .``, not
+    only the editable install) carries all of them."""
+    text = (ROOT / "pyproject.toml").read_text()
+    block = text.split("packages = [", 1)[1].split("]", 1)[0]
+    listed = {name.strip().strip('"') for name in block.replace("\n", " ").split(",")} - {""}
+    found = {"morphlab." + ".".join(p.parent.relative_to(ROOT / "morphlab").parts)
+             for p in (ROOT / "morphlab").rglob("__init__.py")}
+    found = {name.rstrip(".") for name in found} | {"morphlab.kernels"}
+    assert found == listed, f"missing: {sorted(found - listed)}, stale: {sorted(listed - found)}"
