@@ -34,7 +34,7 @@ from .newton import solve_factored_transposed
 from .system import set_design
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1, bh2, gh,
                   indices, indptr, n_dof, pc, upd, Hq, Hv, Ha, Hl, Bq, Bv, Ba, Bg, Bl, mats,
                   J, LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, MU, refined):
@@ -43,7 +43,8 @@ def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1,
     factors stacked as in ``block_recursion``; ``mats`` (3, nnz) scratch of the split
     matrices, ``J`` (nnz,) of the exact matrix; ``refined`` (K,) gets the
     relative residual of each refined solve. Returns the position of the initial solve in the
-    block (the sweep stops there), or -1."""
+    block (the sweep stops there), or -1. Runs without the GIL: the designs' compile goes on
+    on its thread meanwhile (``morphlab.sensitivity.adjoint``)."""
     K = MU.shape[0]
     n = indptr.shape[0] - 1
     m = Bq.shape[1]

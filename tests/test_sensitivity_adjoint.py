@@ -215,6 +215,39 @@ def test_designs_compiled_during_the_primal_give_the_same_gradients(monkeypatch)
     assert a.values == b.values and a.gradients == b.gradients
 
 
+@pytest.mark.parametrize("name", CASES)
+def test_designs_still_compiling_during_the_sweep_give_the_same_gradients(name, monkeypatch):
+    """The designs' thread held until the sweep asks for them: every block's design share
+    waits (``deferred_shares``) while the state sweep runs, and is added in the same order
+    later, so the gradients equal those of a run whose designs were ready, bit for bit."""
+    import threading
+
+    from morphlab.sensitivity import adjoint, api
+
+    build, p0, resp = adjoint_responses(name)
+    monkeypatch.setattr(api.os, "cpu_count", lambda: 1)  # designs compiled before the primal
+    ready = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
+    go = threading.Event()
+
+    def held(p):
+        if any(isinstance(x, complex) for x in p.values()):
+            assert go.wait(60), "the sweep never asked for the designs"
+        return build(p)
+
+    finish = adjoint._Sweep.finish
+
+    def release(self):
+        go.set()
+        finish(self)
+
+    monkeypatch.setattr(adjoint._Sweep, "finish", release)
+    late = ml.sensitivities(held, p0, resp, method="adjoint", **RUN)
+    assert ready.stats["deferred_shares"] == 0
+    assert late.stats["deferred_shares"] > 0
+    assert late.values == ready.values and late.gradients == ready.gradients
+
+
 def test_a_design_that_fails_on_its_thread_stops_the_primal(monkeypatch):
     """A perturbed design that cannot be built raises its SensitivityError in the caller's
     thread at the next step of the primal, not after the whole run."""

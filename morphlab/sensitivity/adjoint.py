@@ -150,19 +150,59 @@ def _tproduct(sys0: System, D, x, n_cols: int) -> np.ndarray:
 class _Sweep:
     """The backward sweep (module docstring) over segments of steps: the adjoint state
     ``bar`` of the step last processed and the gradient ``grad`` (n_x, m) so far, without the
-    responses' own data terms."""
+    responses' own data terms. ``data()`` forms the pseudo-load data once ``wait()`` has
+    returned (the designs compiled); until ``ready()`` says so, the design's share of each
+    block is kept (:meth:`_design`) and added by :meth:`finish`."""
 
-    def __init__(self, sys0: System, stp, vjps: list[ResponseVJP], data: PseudoLoadData,
-                 refine: int, refine_tol: float, F, stats: dict, block_bytes: float = np.inf,
-                 step_bytes: float = 1.0):
-        self.sys0, self.stp, self.vjps, self.data, self.F = sys0, stp, vjps, data, F
+    def __init__(self, sys0: System, stp, vjps: list[ResponseVJP],
+                 data: Callable[[], PseudoLoadData], n_x: int, refine: int, refine_tol: float,
+                 F, stats: dict, block_bytes: float = np.inf, step_bytes: float = 1.0,
+                 ready: Callable[[], bool] = lambda: True, wait: Callable[[], object] = list):
+        self.sys0, self.stp, self.vjps, self.F = sys0, stp, vjps, F
         self.block_bytes, self.step_bytes = block_bytes, step_bytes
         self.refine, self.refine_tol, self.stats = refine, refine_tol, stats
         n_dof, n_con, m = sys0.n_dof, sys0.n_con, len(vjps)
         self.bar = {k: np.zeros((w, m)) for k, w in (("q", n_dof), ("v", n_dof),
                                                       ("a", n_dof), ("g", n_dof),
                                                       ("lam", n_con))}
-        self.grad = np.zeros((data.dq0.shape[1], m))
+        self.grad = np.zeros((n_x, m))
+        # the design's share waits (``_deferred``, at most ``block_bytes``) while the designs
+        # still compile on their thread: the state sweep needs none of them
+        self._data, self._ready, self._wait, self.data = data, ready, wait, None
+        self._deferred: list = []
+        self._deferred_bytes = 0
+        self.wait = 0.0
+
+    def _design(self, *args) -> None:
+        """The design's share of steps (:func:`_design_share` without its first three
+        arguments; ``("initial", q̄, v̄)``: the terms of ``dq0``, ``dv0``), now if the designs
+        are compiled or the deferred shares would exceed ``block_bytes``, else later."""
+        if self.data is None and not self._ready():
+            size = sum(a.nbytes for a in args if isinstance(a, np.ndarray))
+            if self._deferred_bytes + size <= self.block_bytes:
+                self._deferred.append(args)
+                self._deferred_bytes += size
+                self.stats["deferred_shares"] = self.stats.get("deferred_shares", 0) + 1
+                return
+        self.finish()
+        self._apply(args)
+
+    def _apply(self, args) -> None:
+        if isinstance(args[0], str):  # ("initial", q̄, v̄)
+            self.grad += self.data.dq0.T @ args[1] + self.data.dv0.T @ args[2]
+        else:
+            _design_share(self.sys0, self.stp, self.data, *args, self.grad)
+
+    def finish(self) -> None:
+        """Wait for the designs (if they still compile) and add the deferred shares."""
+        if self.data is None:
+            t0 = _time.perf_counter()
+            self._wait()
+            self.wait += _time.perf_counter() - t0
+            self.data = self._data()
+        for args in self._deferred:
+            self._apply(args)
+        self._deferred, self._deferred_bytes = [], 0
 
     def segment(self, steps: list, prev) -> None:
         """Sweep one segment of steps (in time order; ``prev`` the state before them): runs
@@ -209,9 +249,9 @@ class _Sweep:
             bar["a"], bar["g"], bar["lam"], np.zeros((3, nnz)), np.zeros(nnz),
             *stacked_arrays([b[2] for b in block]), refine, self.refine, MU, refined)
         self.stats["refinement_residual"] += refined[refine].tolist()
-        _design_share(sys0, stp, self.data, Q, V, A, L, coef, k_new, MU, self.grad)
+        self._design(Q, V, A, L, coef, k_new, MU)
         if initial >= 0:
-            self.grad += self.data.dq0.T @ bar["q"] + self.data.dv0.T @ bar["v"]
+            self._design("initial", bar["q"].copy(), bar["v"].copy())
 
     def _terms(self, k_new: np.ndarray) -> tuple:
         """The responses' own derivatives at the times ``k_new``: ``(Hq, Hv, Ha, Hl)``
@@ -249,10 +289,9 @@ class _Sweep:
         old = (st.q, st.v, np.zeros(n_dof), np.zeros(n_con)) if prev is None else (
             prev.q, prev.v, prev.a, prev.lam)
         Q, V, A, L = (np.stack([old[c], (st.q, st.v, st.a, st.lam)[c]]) for c in range(4))
-        _design_share(sys0, stp, self.data, Q, V, A, L, coef, np.array([n]), mu[None],
-                      self.grad)
+        self._design(Q, V, A, L, coef, np.array([n]), mu[None])
         if n == 0:
-            self.grad += self.data.dq0.T @ qhb + self.data.dv0.T @ vhb
+            self._design("initial", qhb, vhb)
             return
         gb = bar["g"]
         bar["q"] = qhb
@@ -298,8 +337,10 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, designs: Comp
     """The primal run, the responses' gradients and the backward sweep.
 
     ``designs``: the complex-step systems of the variables, which may still be compiling on a
-    thread while the primal runs (their error, if any, stops the primal at the next step);
-    ``data()``: the pseudo-load data formed from them, called after the primal. ``memory``:
+    thread while the primal runs (their error, if any, stops the primal at the next step) and
+    while the backward sweep solves for the adjoint states, which need none of them (the
+    design's share of each block waits meanwhile, within ``memory / 8`` bytes);
+    ``data()``: the pseudo-load data formed from them, called once they are compiled. ``memory``:
     bytes of states and factorizations kept for the sweep; beyond them the run keeps
     checkpoints and the sweep recomputes segments (:class:`_Recorder`). The primal keeps only
     the histories the responses read. Returns ``(result, values, gradients, timing, stats)``
@@ -313,18 +354,19 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, designs: Comp
         designs.stop()
         raise
     t_primal = _time.perf_counter() - t0
-    complex_systems = designs.result()
-    t_wait = _time.perf_counter() - t0 - t_primal
-    data = data()
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
     stats = {"refinement_residual": [], "n_factorizations": res0.n_factorizations,
-             "segment_steps": rec.K, "designs_in_background": designs.background}
-    sweep = _Sweep(sys0, rec.stepper, vjps, data, refine, refine_tol, rec.table.F, stats,
-                   block_bytes=memory / 8, step_bytes=rec.per_step)
+             "segment_steps": rec.K, "designs_in_background": designs.background,
+             "deferred_shares": 0}
+    sweep = _Sweep(sys0, rec.stepper, vjps, data, designs.n_variables, refine, refine_tol,
+                   rec.table.F, stats, block_bytes=memory / 8, step_bytes=rec.per_step,
+                   ready=designs.done, wait=designs.result)
     for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
         sweep.segment(steps, prev)
-    grad = sweep.grad + _data_terms(vjps, sys0, complex_systems)
+    sweep.finish()
+    t_wait = sweep.wait
+    grad = sweep.grad + _data_terms(vjps, sys0, designs.result())
     total = _time.perf_counter() - t0
     timing = {"primal": t_primal, "sensitivity": total - t_primal, "run": total,
               "designs": designs.seconds, "designs_wait": t_wait}

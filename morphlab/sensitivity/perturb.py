@@ -208,6 +208,14 @@ class ComplexDesigns:
         with _short_switch_interval():
             self._compile()
 
+    @property
+    def n_variables(self) -> int:
+        return len(self._args[2])
+
+    def done(self) -> bool:
+        """Whether the compile has ended (without waiting)."""
+        return self._thread is None or not self._thread.is_alive()
+
     def check(self) -> None:
         """Raise the compile's error if it has failed (without waiting)."""
         if self._error is not None:
