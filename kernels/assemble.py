@@ -95,7 +95,7 @@ def applied_jacobian(extra, S, q, v, cf, C, F, out):
             spring_jacobian(S, q, v, cf, cq, cv, out[r])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fill_split(S, q, v, a, lam, cm, cl, cf, ccm, ccf, scale, b0, b1, F, C, out):
     """Overwrite ``out`` (m, nnz) with combinations of the derivatives of one time level's
     residual share at the given state: the Newton matrix is ``D0 + bh2 Dq + gh Dv`` (the chain
@@ -110,7 +110,7 @@ def fill_split(S, q, v, a, lam, cm, cl, cf, ccm, ccf, scale, b0, b1, F, C, out):
     applied_jacobian(S.extra_items, S, q, v, cf, C, F, out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fill_matrix(S, q, v, a, lam, cm, cl, cf, ccm, ccf, bh2, gh, scale, b0, b1, F, data):
     """Overwrite ``data`` (nnz,) with the Newton matrix ``d(residual)/d(a, lambda/scale)`` at
     the given state (:func:`fill_split` with ``C = ((1, bh2, gh),)``)."""
