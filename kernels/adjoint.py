@@ -120,28 +120,30 @@ def _add(B, H, j):
                 B[i, c] += H[j, i, c]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale,
-                           b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, MU, grad):
-    """The design's share of the adjoint gradient over a block of steps:
-    ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial derivative of step
-    ``j``'s residual along variable ``i`` formed as in
+                           b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, i0, i1, work, MU,
+                           grad):
+    """The design's share of the adjoint gradient over a block of steps, for the variables
+    ``i0 .. i1-1``: ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial
+    derivative of step ``j``'s residual along variable ``i`` formed as in
     :func:`~morphlab.kernels.direct.explicit_loads` (complex step or forward difference over
     the parts ``i`` changes, its time arrays table ``tab_of[i]`` of ``TAB``, the nominal's
     table 0; design ``i`` written into ``W``, a copy of ``S``, from its rows ``D``) and
     contracted with ``MU[j]`` (K, n, m) over the residual rows
     those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
-    system. ``work`` (2, n): scratch residuals, zero on entry and on exit."""
+    system. ``work`` (2, n): scratch residuals, zero on entry and on exit. Runs without the
+    GIL: the sweep's next block, and other ranges of variables (each with its own ``W`` and
+    ``work``), go on meanwhile (``morphlab.sensitivity.adjoint``)."""
     r_off, r_idx = touched
     forward = pert[0].imag == 0.0
     R = work[0]
     R0 = work[1]
     scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
-    n_x = grad.shape[0]
     m = grad.shape[1]
-    for i in range(n_x):
+    for i in range(i0, i1):
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
                 + pi.springs.size) == 0:

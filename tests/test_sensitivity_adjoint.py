@@ -66,7 +66,8 @@ class Multiplier:
         e[self._i(res)] = 1.0
         value = np.real(self(res))
         if self.mean:
-            return ResponseVJP(value, stream=lambda n: {"lam": e / res.n_t})
+            return ResponseVJP(value, stream=lambda ns: {"lam": np.tile(e / res.n_t,
+                                                                         (ns.size, 1))})
         return ResponseVJP(value, terms={res.n_t - 1: {"lam": e}})
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from ..errors import SensitivityError
 
@@ -31,27 +32,41 @@ class ResponseVJP:
         ``terms[n][name]``: ``∂f/∂name_n`` at time index ``n`` (``name`` in
         :data:`HISTORY_NAMES`; (n_dof,) or (n_con,)); times not listed contribute nothing.
     stream : callable, optional
-        ``stream(n) -> dict[str, ndarray]`` for responses that read every time: computed on
-        demand, so the adjoint sweep never holds a whole history of gradients.
+        ``stream(ns) -> dict[str, ndarray]`` for responses that read every time: ``ns`` (k,)
+        time indices, each value (k, n_dof) or (k, n_con), one row per index (zero where the
+        response does not read that time). Computed on demand, a block of steps at a time, so
+        the adjoint sweep never holds a whole history of gradients.
     data : dict[str, ndarray], optional
         ``∂f/∂D`` for system data ``D`` the response reads, keyed as :func:`system_data`.
     """
 
     def __init__(self, value: float, terms: dict | None = None,
-                 stream: Callable[[int], dict] | None = None, data: dict | None = None):
+                 stream: Callable[[np.ndarray], dict] | None = None, data: dict | None = None):
         self.value = float(value)
         self.terms = terms or {}
         self.stream = stream
         self.data = data or {}
 
+    def over(self, ns) -> dict:
+        """``{name: ∂f/∂name}`` at the time indices ``ns`` (k,), each (k, width): one row per
+        index; a history the response reads at none of them is absent."""
+        ns = np.asarray(ns, dtype=np.int64).reshape(-1)
+        out: dict = {}
+        for j, n in enumerate(ns.tolist()):
+            for name, g in self.terms.get(n, {}).items():
+                if name not in out:
+                    out[name] = np.zeros((ns.size, np.shape(g)[0]))
+                out[name][j] += np.real(g)
+        if self.stream is not None:
+            for name, g in self.stream(ns).items():
+                g = np.real(g)
+                out[name] = out[name] + g if name in out else g
+        return out
+
     def at(self, n: int) -> dict:
         """``{name: ∂f/∂name_n}`` at time index ``n`` (empty where the response does not read
         that time)."""
-        out = dict(self.terms.get(n, {}))
-        if self.stream is not None:
-            for name, g in self.stream(n).items():
-                out[name] = out[name] + g if name in out else g
-        return out
+        return {name: g[0] for name, g in self.over([n]).items()}
 
 
 def system_data(system, key: str) -> np.ndarray:
@@ -86,7 +101,8 @@ def response_vjp(name: str, fn, result) -> ResponseVJP:
 class StressMap:
     """The stress of one beam as a linear map of ``q``, evaluated over chunks of times (so a
     long run of a fine beam never holds its whole stress history) and transposed for
-    gradients. ``times`` (k,): the time indices read."""
+    gradients. ``times`` (k,): the time indices read; ``P``: the map as a sparse matrix
+    (n_elem * 4, n_dof), the stresses of element ``e`` in rows ``4 e .. 4 e + 3``."""
 
     def __init__(self, result, body: str, times, chunk: int = 256):
         system = result.system
@@ -96,6 +112,11 @@ class StressMap:
         self.keep = self.ed >= 0
         self.B = np.real(system.elem_B[info.elements]).reshape(-1, 4, 6)
         self.n_dof = system.n_dof
+        n_e = self.B.shape[0]
+        rows = np.broadcast_to(np.arange(4 * n_e).reshape(n_e, 4, 1), self.B.shape)
+        cols = np.broadcast_to(self.ed[:, None, :], self.B.shape)
+        ok = np.broadcast_to(self.keep[:, None, :], self.B.shape)
+        self.P = csr_matrix((self.B[ok], (rows[ok], cols[ok])), shape=(4 * n_e, self.n_dof))
 
     def _local(self, k0: int, k1: int) -> np.ndarray:
         """Element coordinates at times ``times[k0:k1]``, (k, n_e, 6) (zero where removed)."""
@@ -109,12 +130,13 @@ class StressMap:
             qe = self._local(k0, k1)
             yield k0, k1, np.einsum("enj,kej->ken", self.B, qe), qe
 
+    def stress(self, q: np.ndarray) -> np.ndarray:
+        """The stresses (k, n_e * 4) of the states ``q`` (k, n_dof)."""
+        return np.asarray((self.P @ np.real(q).T).T)
+
     def q_gradient(self, G: np.ndarray) -> np.ndarray:
-        """``d sum(G * stress_k) / dq_k`` (n_dof,) of one time, ``G`` (n_e, 4)."""
-        local = np.einsum("en,enj->ej", G, self.B)
-        dq = np.zeros(self.n_dof)
-        np.add.at(dq, self.ed[self.keep], local[self.keep])
-        return dq
+        """``d sum(G_k * stress_k) / dq_k`` (k, n_dof) for ``G`` (k, n_e * 4)."""
+        return np.asarray((self.P.T @ np.asarray(G).T).T)
 
 
 def stress_vjp(result, body: str, G: np.ndarray, times) -> tuple[np.ndarray, np.ndarray]:
@@ -123,7 +145,7 @@ def stress_vjp(result, body: str, G: np.ndarray, times) -> tuple[np.ndarray, np.
     elements ((n_elem, 2, 2, 6)). ``G`` (len(times), n_elem, 2, 2)."""
     smap = StressMap(result, body, times)
     Gr = np.real(G).reshape(G.shape[0], -1, 4)
-    dq = np.stack([smap.q_gradient(g) for g in Gr]) if len(Gr) else np.zeros((0, smap.n_dof))
+    dq = smap.q_gradient(Gr.reshape(Gr.shape[0], -1))
     dB = np.zeros(smap.B.shape)
     for k0, k1, _, qe in smap.chunks():
         dB += np.einsum("ken,kej->enj", Gr[k0:k1], qe)

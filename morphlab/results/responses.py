@@ -160,8 +160,8 @@ class ks_max_stress:  # noqa: N801 - a response factory, named like the function
     def vjp(self, result) -> ResponseVJP:
         """Value and gradient over chunks of time steps (:class:`StressMap`): passes for the
         scale (RMS, largest magnitude), the aggregate, and (relative form) the weighted sum
-        its derivative needs; the derivative with respect to ``q_n`` is formed when the
-        sweep reaches step ``n``, so no history of stresses or gradients is held."""
+        its derivative needs; the derivatives with respect to ``q_n`` are formed when the
+        sweep reaches a block of steps, so no history of stresses or gradients is held."""
         idx = np.arange(result.n_t)[self.times if self.times is not None else slice(None)]
         smap = StressMap(result, self.body, idx)
         n_val, ssq, peak = 0, 0.0, 0.0
@@ -195,14 +195,15 @@ class ks_max_stress:  # noqa: N801 - a response factory, named like the function
         dB = np.zeros(smap.B.shape)
         for _, _, sig, qe in smap.chunks():
             dB += np.einsum("ken,kej->enj", G_of(sig), qe)
-        rows = {int(n): j for j, n in enumerate(idx)}
+        read = np.zeros(result.n_t, dtype=bool)
+        read[idx] = True
 
-        def stream(n):
-            if n not in rows:
-                return {}
-            j = rows[n]
-            qe = smap._local(j, j + 1)[0]
-            return {"q": smap.q_gradient(G_of(np.einsum("enj,ej->en", smap.B, qe)))}
+        def stream(ns):  # one sparse product each way for a block of steps
+            dq = np.zeros((ns.size, smap.n_dof))
+            sel = read[ns]
+            if sel.any():
+                dq[sel] = smap.q_gradient(G_of(smap.stress(result.q[ns[sel]])))
+            return {"q": dq}
 
         return ResponseVJP(value, stream=stream,
                            data={"elem_B": _full_elem_B(result, self.body,

@@ -26,8 +26,11 @@ The state matrices ``R_q``, ``R_v`` come from the same kernels as the direct met
 
 from __future__ import annotations
 
+import os
 import time as _time
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from itertools import groupby
 
 import numpy as np
@@ -36,6 +39,7 @@ from ..compile import System
 from ..compile.system import table_at
 from ..kernels.adjoint import adjoint_block, explicit_adjoint_block
 from ..kernels.direct import csc_residual_transposed, csc_transposed_product, split_matrices
+from ..kernels.system import DESIGN_FIELDS
 from ..results.gradients import ResponseVJP, response_vjp, system_data
 from ..solve.linalg import stacked_arrays
 from ..solve.settings import Settings
@@ -120,17 +124,18 @@ def _segments(rec: _Recorder, settings: Settings, q0, v0):
         yield steps, prev
 
 
-def _design_share(sys0: System, stp, data: PseudoLoadData, Q, V, A, L, coef, k_new, MU,
-                  grad) -> None:
-    """``grad -= sum_j (dR_j/dp)^T MU[j]`` over steps with states ``(Q, V, A, L)[j + 1]``
-    (``[0]`` the state before them), coefficients ``coef`` and time indices ``k_new``
+def _design_share(sys0: System, stp, data: PseudoLoadData, W, i0: int, i1: int, Q, V, A, L,
+                  coef, k_new, MU, grad) -> None:
+    """``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` for the variables ``i0 .. i1-1`` over steps
+    with states ``(Q, V, A, L)[j + 1]`` (``[0]`` the state before them), coefficients
+    ``coef`` and time indices ``k_new``; ``W``: design scratch, a copy of ``data.W``
     (:func:`~morphlab.kernels.adjoint.explicit_adjoint_block`)."""
     work = np.zeros((2, sys0.n), dtype=data.dtype)
-    explicit_adjoint_block(data.S_nom, data.W, data.D, data.parts, data.touched, Q, V, A, L,
+    explicit_adjoint_block(data.S_nom, W, data.D, data.parts, data.touched, Q, V, A, L,
                            coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
                            stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
-                           np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, work,
-                           np.ascontiguousarray(MU), grad)
+                           np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, i0, i1,
+                           work, np.ascontiguousarray(MU), grad)
 
 
 def _split(stp, st, w, F, n_dof):
@@ -147,12 +152,27 @@ def _tproduct(sys0: System, D, x, n_cols: int) -> np.ndarray:
     return out
 
 
+#: Blocks whose design share may wait for the shares' threads (:class:`_Sweep`): their states
+#: and adjoint vectors are held meanwhile, each block at most an eighth of the memory budget.
+PENDING_SHARES = 2
+#: Threads adding the design's shares, each for a contiguous range of the variables.
+SHARE_THREADS = min(2, os.cpu_count() or 1)
+
+
 class _Sweep:
     """The backward sweep (module docstring) over segments of steps: the adjoint state
     ``bar`` of the step last processed and the gradient ``grad`` (n_x, m) so far, without the
     responses' own data terms. ``data()`` forms the pseudo-load data once ``wait()`` has
     returned (the designs compiled); until ``ready()`` says so, the design's share of each
-    block is kept (:meth:`_design`) and added by :meth:`finish`."""
+    block is kept (:meth:`_design`) and added once they are.
+
+    The design's shares are added on threads of their own (:data:`SHARE_THREADS`, each for a
+    range of the variables, so each row of ``grad`` gains its terms in the order of the
+    blocks: the same gradient to the bit) while the sweep goes on to the next block. The
+    kernels run without the GIL: on two cores the shares cost no wall time while they are
+    shorter than the sweep, and those left at the end (the designs compiled last) take both
+    cores. At most :data:`PENDING_SHARES` blocks wait for them. :meth:`finish` (or
+    :meth:`close`, on an error) ends the threads."""
 
     def __init__(self, sys0: System, stp, vjps: list[ResponseVJP],
                  data: Callable[[], PseudoLoadData], n_x: int, refine: int, refine_tol: float,
@@ -172,9 +192,15 @@ class _Sweep:
         self._deferred: list = []
         self._deferred_bytes = 0
         self.wait = 0.0
+        cuts = np.linspace(0, n_x, min(SHARE_THREADS, max(n_x, 1)) + 1).astype(int)
+        self._ranges = list(zip(cuts[:-1].tolist(), cuts[1:].tolist()))
+        self._shares = [ThreadPoolExecutor(1, thread_name_prefix="morphlab-shares")
+                        for _ in self._ranges]
+        self._W: list = []  # each thread's design scratch
+        self._pending: deque = deque()
 
     def _design(self, *args) -> None:
-        """The design's share of steps (:func:`_design_share` without its first three
+        """The design's share of steps (:func:`_design_share` without its first six
         arguments; ``("initial", q̄, v̄)``: the terms of ``dq0``, ``dv0``), now if the designs
         are compiled or the deferred shares would exceed ``block_bytes``, else later."""
         if self.data is None and not self._ready():
@@ -184,16 +210,33 @@ class _Sweep:
                 self._deferred_bytes += size
                 self.stats["deferred_shares"] = self.stats.get("deferred_shares", 0) + 1
                 return
-        self.finish()
+        self._flush()
         self._apply(args)
 
     def _apply(self, args) -> None:
-        if isinstance(args[0], str):  # ("initial", q̄, v̄)
-            self.grad += self.data.dq0.T @ args[1] + self.data.dv0.T @ args[2]
-        else:
-            _design_share(self.sys0, self.stp, self.data, *args, self.grad)
+        """Hand one share to the shares' threads (waiting for the oldest beyond
+        :data:`PENDING_SHARES`)."""
+        if not self._W:
+            W = self.data.W
+            self._W = [W] + [W._replace(**{k: getattr(W, k).copy() for k in DESIGN_FIELDS})
+                             for _ in self._ranges[1:]]
+        self._pending.append([pool.submit(self._add_share, k, args)
+                              for k, pool in enumerate(self._shares)])
+        while len(self._pending) > PENDING_SHARES:
+            for f in self._pending.popleft():
+                f.result()
 
-    def finish(self) -> None:
+    def _add_share(self, k: int, args) -> None:
+        """The share ``args`` (:meth:`_design`) for the variables of range ``k``."""
+        i0, i1 = self._ranges[k]
+        if isinstance(args[0], str):  # ("initial", q̄, v̄)
+            d = self.data
+            self.grad[i0:i1] += d.dq0[:, i0:i1].T @ args[1] + d.dv0[:, i0:i1].T @ args[2]
+        else:
+            _design_share(self.sys0, self.stp, self.data, self._W[k], i0, i1, *args,
+                          self.grad)
+
+    def _flush(self) -> None:
         """Wait for the designs (if they still compile) and add the deferred shares."""
         if self.data is None:
             t0 = _time.perf_counter()
@@ -203,6 +246,21 @@ class _Sweep:
         for args in self._deferred:
             self._apply(args)
         self._deferred, self._deferred_bytes = [], 0
+
+    def finish(self) -> None:
+        """:meth:`_flush` and wait for the shares' thread: ``grad`` is complete."""
+        self._flush()
+        try:
+            while self._pending:
+                for f in self._pending.popleft():
+                    f.result()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """End the shares' threads (after the shares handed to them)."""
+        for pool in self._shares:
+            pool.shutdown(wait=True)
 
     def segment(self, steps: list, prev) -> None:
         """Sweep one segment of steps (in time order; ``prev`` the state before them): runs
@@ -259,12 +317,11 @@ class _Sweep:
         sys0, m = self.sys0, len(self.vjps)
         widths = {"q": sys0.n_dof, "v": sys0.n_dof, "a": sys0.n_dof, "lam": sys0.n_con}
         H = {}
-        for j, n in enumerate(k_new):
-            for r, vj in enumerate(self.vjps):
-                for name, g in vj.at(int(n)).items():
-                    if name not in H:
-                        H[name] = np.zeros((k_new.size, widths[name], m))
-                    H[name][j, :, r] += np.real(g)
+        for r, vj in enumerate(self.vjps):
+            for name, g in vj.over(k_new).items():
+                if name not in H:
+                    H[name] = np.zeros((k_new.size, widths[name], m))
+                H[name][:, :, r] += g
         return tuple(H.get(k, np.zeros((0, widths[k], m))) for k in ("q", "v", "a", "lam"))
 
     def step(self, step, prev) -> None:
@@ -275,7 +332,7 @@ class _Sweep:
         n, st, lu, last, coef = step
         for r, vj in enumerate(self.vjps):
             for name, g in vj.at(n).items():
-                bar[name][:, r] += np.real(g)
+                bar[name][:, r] += g
         h, cqa, cqg, cva, cvg, bh2, gh = coef.arrays.pc
         ga, gan, ggn = coef.arrays.upd
         zb = np.concatenate([bar["a"] + bh2 * bar["q"] + gh * bar["v"] + ga * bar["g"],
@@ -362,9 +419,12 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, designs: Comp
     sweep = _Sweep(sys0, rec.stepper, vjps, data, designs.n_variables, refine, refine_tol,
                    rec.table.F, stats, block_bytes=memory / 8, step_bytes=rec.per_step,
                    ready=designs.done, wait=designs.result)
-    for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
-        sweep.segment(steps, prev)
-    sweep.finish()
+    try:
+        for steps, prev in _segments(rec, settings, sys0.q0, sys0.v0):
+            sweep.segment(steps, prev)
+        sweep.finish()
+    finally:
+        sweep.close()
     t_wait = sweep.wait
     grad = sweep.grad + _data_terms(vjps, sys0, designs.result())
     total = _time.perf_counter() - t0
