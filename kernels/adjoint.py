@@ -25,6 +25,7 @@ from .direct import (
     add_explicit_residual,
     csc_residual_transposed,
     csc_transposed_product,
+    elastic_force,
     part_scratch,
     parts_of,
     split_matrices,
@@ -121,9 +122,9 @@ def _add(B, H, j):
 
 
 @njit(cache=True, nogil=True)
-def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, w_old, scale,
-                           b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, i0, i1, work, MU,
-                           grad):
+def explicit_adjoint_block(S, W, D, parts, lin, touched, Q, V, A, L, w_new, has_old, w_old,
+                           scale, b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, i0, i1, work,
+                           MU, grad):
     """The design's share of the adjoint gradient over a block of steps, for the variables
     ``i0 .. i1-1``: ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial
     derivative of step ``j``'s residual along variable ``i`` formed as in
@@ -133,9 +134,11 @@ def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, 
     contracted with ``MU[j]`` (K, n, m) over the residual rows
     those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
     (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
-    system. ``work`` (2, n): scratch residuals, zero on entry and on exit. Runs without the
-    GIL: the sweep's next block, and other ranges of variables (each with its own ``W`` and
-    ``work``), go on meanwhile (``morphlab.sensitivity.adjoint``)."""
+    system. A variable that changes only element stiffnesses and damping (``lin``, as for
+    :func:`~morphlab.kernels.direct.explicit_loads`) contributes ``w_f (dK_e q_e + dC_e
+    q_e')`` in real arithmetic. ``work`` (2, n): scratch residuals, zero on entry and on
+    exit. Runs without the GIL: the sweep's next block, and other ranges of variables (each
+    with its own ``W`` and ``work``), go on meanwhile (``morphlab.sensitivity.adjoint``)."""
     r_off, r_idx = touched
     forward = pert[0].imag == 0.0
     R = work[0]
@@ -143,7 +146,23 @@ def explicit_adjoint_block(S, W, D, parts, touched, Q, V, A, L, w_new, has_old, 
     scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     m = grad.shape[1]
+    lin_off, lin_elem, lin_dK, lin_dC = lin
+    fl = np.empty(6)
     for i in range(i0, i1):
+        if lin_off[i + 1] > lin_off[i]:  # the stiffness alone: real products per element
+            for j in range(MU.shape[0]):
+                for lev in range(2 if has_old else 1):
+                    jj, wf = (j + 1, w_new[2]) if lev == 0 else (j, w_old[2])
+                    for k in range(lin_off[i], lin_off[i + 1]):
+                        e = lin_elem[k]
+                        elastic_force(S, lin_dK[k], lin_dC[k], e, Q[jj], V[jj], fl)
+                        for a in range(6):
+                            f = S.elem_fdof[e, a]
+                            if f >= 0:
+                                r = S.flex_dof[f]
+                                for c in range(m):
+                                    grad[i, c] -= wf * fl[a] * MU[j, r, c]
+            continue
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
                 + pi.springs.size) == 0:

@@ -155,8 +155,31 @@ def parts_of(parts, i, flex_on):
     return pi, f_idx[f_off[i]:f_off[i + 1]]
 
 
+@njit(cache=True, inline="always")
+def elastic_force(S, dK, dC, e, q, v, fl):
+    """``fl = dK q_e + dC v_e`` (6,) float64: the derivative of element ``e``'s elastic and
+    damping force ``K_e (q_e + beta v_e)`` along a design change of its stiffness ``K_e`` and
+    its body's damping ``beta`` alone (``dK = dK_e``, ``dC = d(beta K_e)``, (6, 6) float64), at
+    the real state ``(q, v)``. Entries of coordinates removed by a reference condition are
+    zero."""
+    for a in range(6):
+        fl[a] = 0.0
+    for b in range(6):
+        f = S.elem_fdof[e, b]
+        if f < 0:
+            continue
+        r = S.flex_dof[f]
+        qb = q[r]
+        vb = v[r]
+        for a in range(6):
+            fl[a] += dK[a, b] * qb + dC[a, b] * vb
+    for a in range(6):
+        if S.elem_fdof[e, a] < 0:
+            fl[a] = 0.0
+
+
 @njit(cache=True)
-def explicit_loads(S, W, D, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old,
+def explicit_loads(S, W, D, parts, lin, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old,
                    scale, b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
     """Subtract the explicit part of every pseudo-load from ``rhs`` (n, n_x):
     ``rhs[:, i] -= Re[(R_i(D_i) - R_i(D_0)) / pert_i]``, ``R_i`` the step residual at the
@@ -177,6 +200,14 @@ def explicit_loads(S, W, D, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l
         ``(offsets, indices)`` of the bodies, elements, flexible coordinates, constraint rows,
         loads, torques and spring-dampers each variable changes (CSR layout over the
         variables).
+    lin : ``(off, elems, dK, dC)``
+        The variables that change element stiffnesses and stiffness-proportional damping and
+        nothing else (CSR over the variables, ``off`` (n_x + 1,) int64; ``elems`` (nnz,)
+        int64; ``dK``, ``dC`` (nnz, 6, 6) float64 the derivatives of each element's ``K_e``
+        and ``beta K_e``). The residual is linear in both, so their partial derivative is
+        ``w_f (dK_e q_e + dC_e q_e')`` over their elements in real arithmetic
+        (:func:`elastic_force`), not a residual of complex data over their bodies; ``parts``
+        is not read for them.
     q1, v1, a1, l1 / q0, v0, a0, l0 : float64
         Converged states at ``t_{n+1}`` and ``t_n`` (the latter used when ``has_old``), kept
         real: with complex data only the products with changed data are complex (the
@@ -193,15 +224,15 @@ def explicit_loads(S, W, D, parts, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l
     work : (2, n)
         Scratch residuals.
     """
-    explicit_block(S, W, D, parts, np.stack((q0, q1)), np.stack((v0, v1)), np.stack((a0, a1)),
+    explicit_block(S, W, D, parts, lin, np.stack((q0, q1)), np.stack((v0, v1)), np.stack((a0, a1)),
                    np.stack((l0, l1)), w_new, has_old, w_old, scale, b0, b1, TAB, tab_of,
                    np.array([k_old]), np.array([k_new]), n_dof, pert, work,
                    rhs.reshape((1, rhs.shape[0], rhs.shape[1])))
 
 
 @njit(cache=True)
-def explicit_block(S, W, D, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1, TAB,
-                   tab_of, k_old, k_new, n_dof, pert, work, E):
+def explicit_block(S, W, D, parts, lin, Q, V, A, L, w_new, has_old, w_old, scale, b0, b1,
+                   TAB, tab_of, k_old, k_new, n_dof, pert, work, E):
     """:func:`explicit_loads` of ``K`` consecutive steps in one call: step ``j`` goes from the
     state ``(Q[j], V[j], A[j], L[j])`` at time index ``k_old[j]`` to ``(Q[j+1], ...)`` at
     ``k_new[j]`` (state arrays (K + 1, width)); its explicit parts are subtracted from
@@ -215,7 +246,21 @@ def explicit_block(S, W, D, parts, Q, V, A, L, w_new, has_old, w_old, scale, b0,
     R0 = work[1]
     scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
+    lin_off, lin_elem, lin_dK, lin_dC = lin
+    fl = np.empty(6)
     for i in range(n_x):
+        if lin_off[i + 1] > lin_off[i]:  # the stiffness alone: real products per element
+            for j in range(E.shape[0]):
+                for lev in range(2 if has_old else 1):
+                    jj, wf = (j + 1, w_new[2]) if lev == 0 else (j, w_old[2])
+                    for k in range(lin_off[i], lin_off[i + 1]):
+                        e = lin_elem[k]
+                        elastic_force(S, lin_dK[k], lin_dC[k], e, Q[jj], V[jj], fl)
+                        for a in range(6):
+                            f = S.elem_fdof[e, a]
+                            if f >= 0:
+                                E[j, S.flex_dof[f], i] -= wf * fl[a]
+            continue
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
                 + pi.springs.size) == 0:

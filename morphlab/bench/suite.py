@@ -342,9 +342,9 @@ def case_floor(repeats: int, quick: bool) -> dict:
         "split matrices (state part)": lambda: split_matrices(
             stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, mats),
         "partial derivatives, 5 variables": lambda: explicit_block(
-            data.S_nom, data.W, data.D, data.parts, *states, w, False, w, stp.scale, stp.b0,
-            stp.b1, data.TAB, data.tab_of, np.full(BLOCK, k - 1), np.full(BLOCK, k), n_dof,
-            data.pert, np.zeros((2, n), dtype=np.complex128), E),
+            data.S_nom, data.W, data.D, data.parts, data.lin, *states, w, False, w, stp.scale,
+            stp.b0, stp.b1, data.TAB, data.tab_of, np.full(BLOCK, k - 1), np.full(BLOCK, k),
+            n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), E),
     }
     us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}
     us["partial derivatives, 5 variables"] = {  # per step of the block

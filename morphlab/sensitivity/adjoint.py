@@ -131,7 +131,7 @@ def _design_share(sys0: System, stp, data: PseudoLoadData, W, i0: int, i1: int, 
     ``coef`` and time indices ``k_new``; ``W``: design scratch, a copy of ``data.W``
     (:func:`~morphlab.kernels.adjoint.explicit_adjoint_block`)."""
     work = np.zeros((2, sys0.n), dtype=data.dtype)
-    explicit_adjoint_block(data.S_nom, W, data.D, data.parts, data.touched, Q, V, A, L,
+    explicit_adjoint_block(data.S_nom, W, data.D, data.parts, data.lin, data.touched, Q, V, A, L,
                            coef.arrays.w_new, coef.old is not None, coef.arrays.w_old,
                            stp.scale, stp.b0, stp.b1, data.TAB, data.tab_of,
                            np.maximum(k_new - 1, 0), k_new, sys0.n_dof, data.pert, i0, i1,

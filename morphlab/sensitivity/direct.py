@@ -100,9 +100,9 @@ class _DirectPass:
         Q, V, A, L = (np.stack([self.first_old[c]] + [s[1][c + 1] for s in steps])
                       for c in range(4))  # State = (t, q, v, a, lam, g)
         E = np.zeros((K, sys0.n, self.r.shape[1]))
-        explicit_block(d.S_nom, d.W, d.D, d.parts, Q, V, A, L, w_new, has_old, w_old, stp.scale,
-                       stp.b0, stp.b1, d.TAB, d.tab_of, k_old, k_new, sys0.n_dof, d.pert,
-                       self.work, E)
+        explicit_block(d.S_nom, d.W, d.D, d.parts, d.lin, Q, V, A, L, w_new, has_old, w_old,
+                       stp.scale, stp.b0, stp.b1, d.TAB, d.tab_of, k_old, k_new, sys0.n_dof,
+                       d.pert, self.work, E)
         # The factorization is one Newton iterate behind (taken at z_k, z* = z_k + dz): its
         # relative error is O(|dz|). Where the last position correction exceeds refine_tol of
         # the model size, the solve is refined against the exact matrix J at z*.

@@ -252,7 +252,10 @@ class PseudoLoadData(NamedTuple):
     (leading axes (n_t, n_tab)), table 0 the nominal one, and ``tab_of`` (n_x,) int64 the table
     of each variable (0 for most: a thickness or a link point changes no profile or constant);
     ``pert`` (n_x,): ``i h`` or the steps; ``dq0``, ``dv0`` (n_dof, n_x): the initial
-    sensitivities.
+    sensitivities; ``touched``: the residual rows each variable's parts can change (CSR over
+    the variables, :func:`touched_rows`); ``lin``: the variables that change element
+    stiffnesses and nothing else, with the derivatives of those stiffnesses
+    (:func:`stiffness_split`).
     """
 
     S_nom: SystemArrays
@@ -266,6 +269,7 @@ class PseudoLoadData(NamedTuple):
     dq0: np.ndarray
     dv0: np.ndarray
     touched: tuple
+    lin: tuple
 
 
 def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
@@ -295,7 +299,57 @@ def pseudo_load_data(sys0: System, psys: list[System], pert: np.ndarray,
     else:
         dq0 = np.stack([(s.q0 - sys0.q0) / e for s, e in zip(psys, pert)], axis=1)
         dv0 = np.stack([(s.v0 - sys0.v0) / e for s, e in zip(psys, pert)], axis=1)
-    return PseudoLoadData(S_nom, W, D, parts, TAB, tab_of, pert, dt, dq0, dv0, touched)
+    lin = stiffness_split(S_nom, D, masks, tab_of, pert)
+    return PseudoLoadData(S_nom, W, D, parts, TAB, tab_of, pert, dt, dq0, dv0, touched, lin)
+
+
+#: Form the partial derivatives of variables that change only element stiffnesses and
+#: stiffness-proportional damping (a Young's modulus, a damping coefficient) as real products
+#: (:func:`stiffness_split`); False takes them through the complex residual like every other
+#: variable (the tests compare both).
+STIFFNESS_SPLIT = True
+
+
+def stiffness_split(S_nom: SystemArrays, D: DesignRows, masks: list, tab_of: np.ndarray,
+                    pert: np.ndarray) -> tuple:
+    """The variables whose designs change the element stiffness matrices ``K_e`` and the
+    bodies' stiffness-proportional damping ``beta`` and nothing else the residual reads, as
+    ``(off, elems, dK, dC)``: CSR over the variables (``off`` (n_x + 1,) int64, empty ranges
+    for the others), their elements (int64: those whose ``K_e`` changes and every element of
+    a body whose ``beta`` changes) and ``dK``, ``dC`` (nnz, 6, 6) float64, the derivatives of
+    ``K_e`` and ``beta K_e``, ``(X_i - X_0) / pert_i`` (``Im X_i / h`` for a complex step).
+    The residual is linear in both, so their pseudo-load is ``w_f (dK_e q_e + dC_e q_e')`` per
+    element, a few real products in place of a residual of complex data over the elements'
+    bodies (:func:`~morphlab.kernels.direct.explicit_loads`); with a forward difference the
+    products are the number the difference of two residuals would give."""
+    n_x = len(masks)
+    off = np.zeros(n_x + 1, dtype=np.int64)
+    elems, dks, dcs = [], [], []
+    K0, beta0, body_of = S_nom.elem_K, S_nom.body_damp, S_nom.elem_body
+    k_off, k_rows, k_vals = D.elem_K
+    b_off, b_rows, b_vals = D.body_damp
+    allowed = ("elem_K", "body_damp")
+    for i, m in enumerate(masks):
+        if not (STIFFNESS_SPLIT and tab_of[i] == 0 and any(m[f].any() for f in allowed)
+                and not any(m[f].any() for f in DESIGN_FIELDS if f not in allowed)):
+            off[i + 1] = off[i]
+            continue
+        K = K0.copy()
+        K[k_rows[k_off[i]:k_off[i + 1]]] = k_vals[k_off[i]:k_off[i + 1]]
+        beta = beta0.copy()
+        beta[b_rows[b_off[i]:b_off[i + 1]]] = b_vals[b_off[i]:b_off[i + 1]]
+        e = np.flatnonzero(m["elem_K"] | m["body_damp"][body_of])
+        dK = (K[e] - K0[e]) / pert[i]
+        dC = (beta[body_of[e], None, None] * K[e] - beta0[body_of[e], None, None] * K0[e]) / pert[i]
+        elems.append(e)
+        dks.append(dK.real)
+        dcs.append(dC.real)
+        off[i + 1] = off[i] + e.size
+    if not elems:
+        return off, np.zeros(0, np.int64), np.zeros((0, 6, 6)), np.zeros((0, 6, 6))
+    return (off, np.concatenate(elems).astype(np.int64),
+            np.ascontiguousarray(np.concatenate(dks), dtype=np.float64),
+            np.ascontiguousarray(np.concatenate(dcs), dtype=np.float64))
 
 
 def _same_time_data(a: System, b: System) -> bool:
