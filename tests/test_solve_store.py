@@ -31,6 +31,26 @@ def test_kept_histories_are_those_of_the_full_run():
         some.energy  # noqa: B018
 
 
+@pytest.mark.parametrize("chunk", [5, 8, 64])
+def test_violations_without_the_velocities_are_those_of_the_full_run(monkeypatch, chunk):
+    """A run that keeps only ``q`` evaluates its constraint violations from a buffer of the
+    last ``VIOLATION_CHUNK`` steps; they must be the full run's to the bit (same kernel, same
+    states) whether the 21 recorded times fill the buffer several times with a remainder (5),
+    exactly (8 for an interrupt after step 7) or never (64), and for a run interrupted after
+    step 7 (8 times recorded) as well."""
+    full = ml.simulate(flexible_mechanism(), **RUN)
+    assert full.constraint_violation.max() > 0.0 and full.velocity_violation.max() > 0.0
+    monkeypatch.setattr(ml.solve.store, "VIOLATION_CHUNK", chunk)
+    some = ml.simulate(flexible_mechanism(), store=("q",), **RUN)
+    np.testing.assert_array_equal(some.constraint_violation, full.constraint_violation)
+    np.testing.assert_array_equal(some.velocity_violation, full.velocity_violation)
+    with pytest.raises(ml.Interrupted) as err:
+        ml.simulate(flexible_mechanism(), store=("q",), progress=_stop_at(7), **RUN)
+    part = err.value.result
+    np.testing.assert_array_equal(part.constraint_violation, full.constraint_violation[:8])
+    np.testing.assert_array_equal(part.velocity_violation, full.velocity_violation[:8])
+
+
 def test_memory_mapped_histories(tmp_path):
     full = ml.simulate(flexible_mechanism(), **RUN)
     mapped = ml.simulate(flexible_mechanism(), memmap=tmp_path, **RUN)

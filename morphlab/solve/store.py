@@ -16,11 +16,15 @@ import numpy as np
 from ..compile import System
 from ..compile.system import extra_items
 from ..errors import ModelError, ResourceError
-from ..kernels.joints import constraint_values, constraint_violation_history
+from ..kernels.joints import constraint_violation_history
 from .settings import State
 
 #: The histories a run can keep, in the order of a state.
 HISTORIES = ("q", "v", "a", "lam")
+#: A run that does not keep both ``q`` and ``v`` in full buffers this many steps of them and
+#: evaluates their constraint violations in one compiled call: per step from Python, the
+#: evaluation and its two maxima cost about a tenth of a Newton step of a small model.
+VIOLATION_CHUNK = 64
 
 
 def available_memory() -> int | None:
@@ -76,11 +80,14 @@ class HistoryStore:
         self.log = np.zeros((max(4 * n_t, 16), 2))  # Newton rows, grown by doubling
         self.log_offsets = np.zeros(n_t + 1, dtype=np.int64)
         self._rows = 0  # Newton rows so far
-        self._phi = np.zeros(system.n_con, dtype=system.dtype)
-        self._phid = np.zeros(system.n_con, dtype=system.dtype)
         self._u0 = np.ascontiguousarray(system.con_u0)
         self._extra = extra_items(system)
         self._batch = "q" in store and "v" in store  # violations from the kept histories
+        if system.n_con and not self._batch:  # else from a buffer of the last steps
+            m, dt = min(VIOLATION_CHUNK, n_t), system.dtype
+            self._buf = (np.zeros((m, system.n_dof), dt), np.zeros((m, system.n_dof), dt),
+                         np.zeros((m, system.n_con), dt), np.zeros((m, system.n_con), dt))
+        self._buffered = 0  # steps in the buffer, the last ones recorded
         self.n_done = -1
 
     def _array(self, name, shape, memmap):
@@ -105,18 +112,32 @@ class HistoryStore:
             self.log[k:k + rows] = history
         self._rows = k + rows
         self.log_offsets[n + 1] = self._rows
-        if self.system.n_con and not self._batch:  # else at the end, from the histories
-            s = self.system
-            constraint_values(self._extra, st.q, st.v, ta.c, ta.cd, s.con_kind,
-                              s.con_dofs, self._u0, self._phi, self._phid)
-            self.viol[n] = np.max(np.abs(np.real(self._phi)))
-            self.vviol[n] = np.max(np.abs(np.real(self._phid)))
         self.n_done = n
+        if self.system.n_con and not self._batch:  # else at the end, from the histories
+            k = self._buffered
+            for buf, x in zip(self._buf, (st.q, st.v, ta.c, ta.cd)):
+                buf[k] = x
+            self._buffered = k + 1
+            if self._buffered == self._buf[0].shape[0]:
+                self._violations()
+
+    def _violations(self) -> None:
+        """The constraint violations of the buffered steps, the last ones recorded."""
+        k, s = self._buffered, self.system
+        if k == 0:
+            return
+        n0 = self.n_done + 1 - k
+        Q, V, C, CD = (b[:k] for b in self._buf)
+        constraint_violation_history(self._extra, Q, V, C, CD, s.con_kind, s.con_dofs,
+                                     self._u0, self.viol[n0:n0 + k], self.vviol[n0:n0 + k])
+        self._buffered = 0
 
     def result_fields(self, table) -> dict:
         """The Result's history fields up to the last recorded step (copies of in-memory
         arrays, views of memory maps); ``table``: the run's time table."""
         sl = slice(0, self.n_done + 1)
+        if self._buffered:
+            self._violations()
         if self._batch and self.system.n_con and self.n_done >= 0 and table is not None:
             s = self.system
             constraint_violation_history(self._extra, self.arrays["q"][sl],
