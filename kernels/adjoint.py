@@ -25,7 +25,7 @@ from .direct import (
     add_explicit_residual,
     csc_residual_transposed,
     csc_transposed_product,
-    elastic_force,
+    elastic_share,
     part_scratch,
     parts_of,
     split_matrices,
@@ -146,22 +146,18 @@ def explicit_adjoint_block(S, W, D, parts, lin, touched, Q, V, A, L, w_new, has_
     scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
     m = grad.shape[1]
-    lin_off, lin_elem, lin_dK, lin_dC = lin
+    lin_off = lin[0]
     fl = np.empty(6)
+    share = np.zeros(R.shape[0])
     for i in range(i0, i1):
         if lin_off[i + 1] > lin_off[i]:  # the stiffness alone: real products per element
+            rows = r_idx[r_off[i]:r_off[i + 1]]  # they hold the elements' coordinates
             for j in range(MU.shape[0]):
-                for lev in range(2 if has_old else 1):
-                    jj, wf = (j + 1, w_new[2]) if lev == 0 else (j, w_old[2])
-                    for k in range(lin_off[i], lin_off[i + 1]):
-                        e = lin_elem[k]
-                        elastic_force(S, lin_dK[k], lin_dC[k], e, Q[jj], V[jj], fl)
-                        for a in range(6):
-                            f = S.elem_fdof[e, a]
-                            if f >= 0:
-                                r = S.flex_dof[f]
-                                for c in range(m):
-                                    grad[i, c] -= wf * fl[a] * MU[j, r, c]
+                elastic_share(S, lin, i, Q, V, j, has_old, w_new, w_old, fl, share)
+                for r in rows:
+                    for c in range(m):
+                        grad[i, c] -= share[r] * MU[j, r, c]
+                    share[r] = 0.0
             continue
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size

@@ -178,6 +178,25 @@ def elastic_force(S, dK, dC, e, q, v, fl):
             fl[a] = 0.0
 
 
+@njit(cache=True, inline="always")
+def elastic_share(S, lin, i, Q, V, j, has_old, w_new, w_old, fl, d):
+    """Add to ``d`` (n,) float64 the partial derivative of step ``j``'s residual (from the
+    state ``(Q[j], V[j])`` to ``(Q[j + 1], V[j + 1])``) along the stiffness variable ``i`` of
+    ``lin`` (:func:`explicit_loads`): ``w_f (dK_e q_e + dC_e q_e')`` over its elements, at
+    both levels when ``has_old``. Only the rows of the elements' flexible coordinates are
+    written. ``fl`` (6,): scratch."""
+    lin_off, lin_elem, lin_dK, lin_dC = lin
+    for lev in range(2 if has_old else 1):
+        jj, wf = (j + 1, w_new[2]) if lev == 0 else (j, w_old[2])
+        for k in range(lin_off[i], lin_off[i + 1]):
+            e = lin_elem[k]
+            elastic_force(S, lin_dK[k], lin_dC[k], e, Q[jj], V[jj], fl)
+            for a in range(6):
+                f = S.elem_fdof[e, a]
+                if f >= 0:
+                    d[S.flex_dof[f]] += wf * fl[a]
+
+
 @njit(cache=True)
 def explicit_loads(S, W, D, parts, lin, q1, v1, a1, l1, w_new, has_old, q0, v0, a0, l0, w_old,
                    scale, b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, work, rhs):
@@ -246,20 +265,19 @@ def explicit_block(S, W, D, parts, lin, Q, V, A, L, w_new, has_old, w_old, scale
     R0 = work[1]
     scr = part_scratch(S, Q[0], R)
     flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
-    lin_off, lin_elem, lin_dK, lin_dC = lin
+    lin_off, lin_elem = lin[0], lin[1]
     fl = np.empty(6)
+    share = np.zeros(n)
     for i in range(n_x):
         if lin_off[i + 1] > lin_off[i]:  # the stiffness alone: real products per element
             for j in range(E.shape[0]):
-                for lev in range(2 if has_old else 1):
-                    jj, wf = (j + 1, w_new[2]) if lev == 0 else (j, w_old[2])
-                    for k in range(lin_off[i], lin_off[i + 1]):
-                        e = lin_elem[k]
-                        elastic_force(S, lin_dK[k], lin_dC[k], e, Q[jj], V[jj], fl)
-                        for a in range(6):
-                            f = S.elem_fdof[e, a]
-                            if f >= 0:
-                                E[j, S.flex_dof[f], i] -= wf * fl[a]
+                elastic_share(S, lin, i, Q, V, j, has_old, w_new, w_old, fl, share)
+                for k in range(lin_off[i], lin_off[i + 1]):
+                    for f in S.elem_fdof[lin_elem[k]]:
+                        if f >= 0:
+                            r = S.flex_dof[f]
+                            E[j, r, i] -= share[r]
+                            share[r] = 0.0
             continue
         pi, flex = parts_of(parts, i, flex_on)
         if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size

@@ -348,9 +348,9 @@ def test_stiffness_only_variables_take_real_products(monkeypatch, scheme):
     four-bar, and give what the complex residual gives, for the direct method, its
     forward-difference variant and the adjoint, with both weightings: the two compute the
     same products in another order, so they agree to round-off of the recursion (measured
-    < 2e-15 relative for the complex step; the forward difference of the complex-residual
-    path carries the rounding of ``R(p + h) - R(p)``, 5e-11 relative on the morphing
-    model: 1e-9 asserted for it)."""
+    on the morphing model: < 4e-15 relative for the complex step; the forward difference of
+    the complex-residual path carries the rounding of ``R(p + h) - R(p)``, 5e-11 relative:
+    1e-9 asserted for it)."""
     from morphlab.sensitivity import perturb
 
     build, p0, every = responses_for("mechanism")
