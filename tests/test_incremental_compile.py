@@ -131,22 +131,36 @@ def test_morphing_model_every_variable(skin, rtol):
 
 
 def test_only_the_changed_frames_are_compiled(monkeypatch):
-    """A thickness of one group recompiles its 4 frames, a node moved the 2 frames holding
-    it; the rest is copied (counted by wrapping the frame compile)."""
+    """A thickness of one group has its 4 frames' numbers formed anew and nothing compiled
+    (their DOFs, elements and joints are the nominal's), a node moved recompiles the 2 frames
+    holding it; the rest is copied (counted by wrapping the frame compile and the rewrite),
+    and only the rewritten rows are formed afresh."""
     from morphlab.compile import bodies
 
     sys0 = ml.compile_model(coupler_model(P_COUPLER), record=True)
-    calls = []
-    real = bodies._compile_frame
+    calls, rewrites = [], []
+    real, real_rewrite = bodies._compile_frame, incremental.rewrite
     monkeypatch.setattr(bodies, "_compile_frame",
                         lambda body, spec, name, *rest: calls.append(name)
                         or real(body, spec, name, *rest))
-    for name, expect in (("t1", [f"coupler#{k}" for k in (4, 5, 6, 7)]),
-                         ("dy5", ["coupler#4", "coupler#5"]), ("Mt", [])):
+    monkeypatch.setattr(incremental, "rewrite",
+                        lambda b, rec, f, values: rewrites.append(f)
+                        or real_rewrite(b, rec, f, values))
+    for name, compiled, rewritten in (
+            ("t1", [], [4, 5, 6, 7]), ("dy5", ["coupler#4", "coupler#5"], []), ("Mt", [], [])):
         calls.clear()
+        rewrites.clear()
         p = dict(P_COUPLER, **{name: P_COUPLER[name] + 1e-30j})
-        ml.compile_model(coupler_model(p), like=sys0)
-        assert calls == expect, name
+        sys_p = ml.compile_model(coupler_model(p), like=sys0)
+        assert (calls, rewrites) == (compiled, rewritten), name
+        if name == "t1":
+            fresh = incremental.fresh_rows(sys_p)
+            frames = sys0.bodies["coupler"].index + np.arange(4, 8)  # t1's group
+            elems = np.flatnonzero(np.isin(sys0.elem_body, frames))
+            assert np.array_equal(fresh["elem_K"], elems)
+            assert fresh["elem_dofs"].size == 0  # the structure is copied
+            assert not any(sys0.con_names[r].startswith("coupler.frame")
+                           for r in fresh["con_u0"])  # so are the frame joints
 
 
 def test_without_a_record_or_another_layout_compiles_in_full():

@@ -91,6 +91,12 @@ def compile_beam(body: Beam, b: Builder) -> None:
     marks = [inc.snapshot(b)] if b.record is not None else None
     done = 0
     arrays = _element_arrays(body, [specs[f] for f in redo], b.dtype)
+    sections = ()
+    if (rec is not None and len(redo) and marks is None and not inc.nodes_changed(body, rec)
+            and inc.one_entry_per_frame(rec, redo)):
+        # only section values changed: every entry copied, the changed frames' numbers
+        # replaced after (_rewrite_sections); the DOFs, elements and joints are the nominal's
+        sections, redo, arrays = (redo, arrays), (), []
     for f, elem in zip(redo, arrays):
         if rec is not None:
             inc.extend_from(b, rec.builder, rec.marks[done], rec.marks[f])
@@ -110,6 +116,8 @@ def compile_beam(body: Beam, b: Builder) -> None:
     if rec is not None:
         inc.extend_from(b, rec.builder, rec.marks[done], rec.marks[n_fr])
     _join_frames(body, b, frames, rec, redo, marks)
+    if sections:
+        _rewrite_sections(b, rec, *sections)
     index = b.bodies_count - len(frames)
     offsets = body.frame_offsets
     elements = slice(frames[0][4].start, frames[-1][4].stop)
@@ -203,7 +211,15 @@ def _compile_frame(body: Beam, spec, name: str, b: Builder, elem: tuple):
     efd = np.stack([flex_index.reshape(n_node, 3)[conn[:, 0]],
                     flex_index.reshape(n_node, 3)[conn[:, 1]]], axis=1).reshape(n_el, 6)
     edofs = np.stack([node_dofs[conn[:, 0]], node_dofs[conn[:, 1]]], axis=1).reshape(n_el, 6)
-    # sum element invariants into the body's flexible coordinates
+    b.close_body(flat[keep], *_frame_invariants(efd, f0, nf, IS, I0S, I0IS, dt))
+    elements = b.add_elements(index, efd, edofs, Me, Se, Ke, Be)
+    return ref, node_dofs, Xb, th0, elements
+
+
+def _frame_invariants(efd, f0: int, nf: int, IS, I0S, I0IS, dt) -> tuple:
+    """The element invariants summed into the frame's ``nf`` flexible coordinates (the first
+    ``f0``; ``efd`` (n_el, 6) each element DOF's coordinate, -1 where removed):
+    ``(IS (nf, 2), I0S (nf,), I0IS (nf,))``."""
     fIS = np.zeros((nf, 2), dtype=dt)
     fI0S = np.zeros(nf, dtype=dt)
     fI0IS = np.zeros(nf, dtype=dt)
@@ -213,9 +229,22 @@ def _compile_frame(body: Beam, spec, name: str, b: Builder, elem: tuple):
     np.add.at(fIS[:, 1], loc[m_ok], IS[:, 1, :][m_ok])
     np.add.at(fI0S, loc[m_ok], I0S[m_ok])
     np.add.at(fI0IS, loc[m_ok], I0IS[m_ok])
-    b.close_body(flat[keep], fIS, fI0S, fI0IS)
-    elements = b.add_elements(index, efd, edofs, Me, Se, Ke, Be)
-    return ref, node_dofs, Xb, th0, elements
+    return fIS, fI0S, fI0IS
+
+
+def _rewrite_sections(b: Builder, rec, redo, arrays) -> None:
+    """The frames ``redo`` of a beam whose nodes are the nominal's (``rec``) and whose section
+    values are not: their entries were copied with the rest of the beam; their numbers
+    (``arrays``, :func:`_element_arrays`) replace the copies (``incremental.rewrite``)."""
+    for f, (scal, IS, I0S, I0IS, Me, Se, Ke, Be) in zip(redo, arrays):
+        efd = rec.builder.elem["fdof"][inc.frame_start(rec, f, "elem", "fdof")]
+        offsets, i = rec.builder.flex_off, inc.frame_start(rec, f, "flex_off")
+        f0 = offsets[i - 1]  # the frame's first flexible coordinate (close_body appends)
+        sums = _frame_invariants(efd, f0, offsets[i] - f0, IS, I0S, I0IS, b.dtype)
+        inc.rewrite(b, rec, f, {("body_scal", None): list(scal), ("flex", "IS"): sums[0],
+                                ("flex", "I0S"): sums[1], ("flex", "I0IS"): sums[2],
+                                ("elem", "M"): Me, ("elem", "St"): Se, ("elem", "K"): Ke,
+                                ("elem", "B"): Be})
 
 
 def _element_arrays(body: Beam, specs: list, dt) -> list:

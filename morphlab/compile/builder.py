@@ -69,6 +69,7 @@ class Builder:
         # the snapshots between which entries were copied from the prior's Builder (None: not
         # at the same positions), and the nominal's formed arrays (incremental.patched_arrays)
         self.copied: list | None = [] if prior is not None else None
+        self.rewritten: list = []  # copied entries replaced since: (list, i0, i1)
         self.formed: dict | None = None
         self.bodies: dict[str, BodyInfo] = {}
         self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)

@@ -9,7 +9,11 @@ every frame whose inputs — its nodes, the section values of its elements, the 
 and frame layout — equal the nominal ones, compiles only the others (and the frame joints next
 to them), and compiles every other item (rigid bodies, joints, loads: few and cheap) as usual.
 Runs of unchanged frames are copied as whole slices of the Builder's lists, so the Python cost
-per design grows with the number of changed frames, not with the beam.
+per design grows with the number of changed frames, not with the beam. Where a beam's nodes
+are the nominal's and only its section values changed (a thickness, a modulus), every entry is
+copied and the changed frames' numbers — their mass invariants, summed element invariants and
+element matrices, formed for all of them in one stack — replace the copies (:func:`rewrite`):
+their DOFs, connectivity and frame joints do not depend on the sections.
 
 The copied entries are the nominal compile's own numbers; where the perturbed design carries
 complex numbers (a complex step) they are cast when the arrays are formed, as a full compile's
@@ -123,6 +127,42 @@ def _differ(x, x0) -> np.ndarray:
     return d
 
 
+def nodes_changed(body, rec: BeamRecord) -> bool:
+    """Whether any node of ``body`` differs from the record's (by more than round-off)."""
+    return bool(np.any(_differ(body.nodes, rec.nodes)))
+
+
+#: The numbers of a frame that depend on the section values only (with the nodes unchanged,
+#: everything else a frame adds — DOFs, connectivity, frame joints — is the nominal's): one
+#: entry of each of these lists per frame.
+SECTION_LISTS = (("body_scal", None), *(("flex", k) for k in ("IS", "I0S", "I0IS")),
+                 *(("elem", k) for k in ("M", "St", "K", "B")))
+_INDEX = {ak: j for j, ak in enumerate(_LISTS)}
+
+
+def one_entry_per_frame(rec: BeamRecord, frames) -> bool:
+    """Whether each of ``frames`` added exactly one entry to every :data:`SECTION_LISTS` list
+    (then :func:`rewrite` can replace them in place)."""
+    return all(rec.marks[f + 1][_INDEX[ak]] - rec.marks[f][_INDEX[ak]] == 1
+               for f in frames for ak in SECTION_LISTS)
+
+
+def frame_start(rec: BeamRecord, f: int, attr: str, key=None) -> int:
+    """Where frame ``f``'s entries begin in the nominal's list ``(attr, key)``."""
+    return rec.marks[f][_INDEX[attr, key]]
+
+
+def rewrite(b, rec: BeamRecord, f: int, values: dict) -> None:
+    """Replace the :data:`SECTION_LISTS` entries of frame ``f`` (copied from the nominal,
+    at the nominal's positions) by ``values`` ((attr, key) -> entry), noted in
+    ``b.rewritten`` so that :func:`patched_arrays` forms those rows afresh."""
+    for (attr, key), value in values.items():
+        j = _INDEX[attr, key]
+        i = rec.marks[f][j]
+        _list(b, attr, key)[i] = value
+        b.rewritten.append((j, i, i + 1))
+
+
 def changed_frames(body, rec: BeamRecord) -> np.ndarray | None:
     """Indices of the frames of ``body`` whose inputs differ from the record's, or None if
     the beam cannot be patched (another layout, damping or node count)."""
@@ -200,14 +240,23 @@ def keep_formed(b, arrays: dict) -> None:
     b.formed = {k: np.array(arrays[k]) for k in _FIELDS}
 
 
-def _fresh_spans(copied: list, j: int, n: int) -> list:
-    """The ranges of list ``j`` (``n`` entries) not copied: the complement of ``copied``."""
+def _fresh_spans(copied: list, j: int, n: int, rewritten: dict) -> list:
+    """The ranges of list ``j`` (``n`` entries) formed afresh: the complement of ``copied``,
+    and the copied entries rewritten since (``rewritten``: list -> ranges)."""
     spans, at = [], 0
     for i0, i1 in sorted((s0[j], s1[j]) for s0, s1 in copied if s1[j] > s0[j]):
         if i0 > at:
             spans.append((at, i0))
         at = max(at, i1)
-    return spans + [(at, n)] if n > at else spans
+    spans = spans + [(at, n)] if n > at else spans
+    spans += rewritten.get(j, [])
+    merged: list = []
+    for i0, i1 in sorted(spans):
+        if merged and i0 <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], i1))
+        else:
+            merged.append((i0, i1))
+    return merged
 
 
 def _offsets(src, attr: str, key) -> np.ndarray:
@@ -233,14 +282,16 @@ def patched_arrays(b) -> tuple[dict, dict] | None:
     index = {ak: j for j, ak in enumerate(_LISTS)}
     out = dict(n_dof=len(b.dof_names), n_con=len(b.con["kind"]), con_drive=b.con_drive,
                dof_names=b.dof_names, con_names=b.con["names"], con_joint=b.con["joint"])
-    fresh = {}
+    fresh, rewritten = {}, {}
+    for j, i0, i1 in b.rewritten:
+        rewritten.setdefault(j, []).append((i0, i1))
     for field, (attr, key, chunked, kind) in _FIELDS.items():
         lst = _list(b, attr, key)
         dtype = {"f": b.dtype, "i": np.int64, "r": np.float64}[kind]
         arr = src.formed[field].astype(dtype)
         off = _offsets(src, attr, key) if chunked else None
         rows = []
-        for i0, i1 in _fresh_spans(b.copied, index[attr, key], len(lst)):
+        for i0, i1 in _fresh_spans(b.copied, index[attr, key], len(lst), rewritten):
             r0, r1 = (int(off[i0]), int(off[i1])) if chunked else (i0, i1)
             val = np.concatenate(lst[i0:i1]) if chunked else np.array(lst[i0:i1], dtype=dtype)
             if val.size != arr[r0:r1].size:
