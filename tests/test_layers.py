@@ -33,8 +33,6 @@ def _modules():
     for path in sorted((ROOT / "morphlab").rglob("*.py")):
         rel = path.relative_to(ROOT / "morphlab").with_suffix("")
         yield "morphlab." + ".".join(rel.parts), path
-    for path in sorted((ROOT / "kernels").glob("*.py")):
-        yield "morphlab.kernels." + path.stem, path
 
 
 def _stage(dotted: str) -> str | None:
@@ -102,7 +100,6 @@ def test_the_layer_check_sees_an_upward_import(tmp_path, monkeypatch):
     fake = tmp_path / "morphlab" / "model"
     fake.mkdir(parents=True)
     (fake / "bad.py").write_text("def f():\n    from ..solve import stepper\n")
-    (tmp_path / "kernels").mkdir()
     monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
     assert _violations() == ["morphlab/model/bad.py:2 (model) imports morphlab.solve (solve)"]
 
@@ -113,7 +110,6 @@ def test_the_layer_check_sees_the_package_top_level(tmp_path, monkeypatch):
     for stage, text in (("io", "from .. import __version__\n"), ("morphing", "import morphlab\n")):
         (tmp_path / "morphlab" / stage).mkdir(parents=True)
         (tmp_path / "morphlab" / stage / "m.py").write_text(text)
-    (tmp_path / "kernels").mkdir()
     monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
     assert _violations() == ["morphlab/io/m.py:1 (io) imports the package top level "
                              "(morphlab.__version__)"]
@@ -128,7 +124,7 @@ def test_kernels_import_nothing_of_morphlab():
 
 @pytest.mark.parametrize("stage", sorted(RANK))
 def test_every_stage_is_a_folder_or_module(stage):
-    base = ROOT / "kernels" if stage == "kernels" else ROOT / "morphlab" / stage
+    base = ROOT / "morphlab" / stage
     assert base.is_dir() or base.with_suffix(".py").is_file(), stage
 
 
@@ -140,5 +136,5 @@ def test_every_package_is_installed():
     listed = {name.strip().strip('"') for name in block.replace("\n", " ").split(",")} - {""}
     found = {"morphlab." + ".".join(p.parent.relative_to(ROOT / "morphlab").parts)
              for p in (ROOT / "morphlab").rglob("__init__.py")}
-    found = {name.rstrip(".") for name in found} | {"morphlab.kernels"}
+    found = {name.rstrip(".") for name in found}
     assert found == listed, f"missing: {sorted(found - listed)}, stale: {sorted(listed - found)}"
