@@ -36,9 +36,18 @@ from .model.profiles import (
 )
 from .results import responses
 from .results.result import Result
-from .sensitivity.api import SensitivityResult, sensitivities
+from .sensitivity import (
+    Adjoint,
+    Auto,
+    ComplexStep,
+    Direct,
+    FiniteDifference,
+    SensitivityResult,
+    Strategy,
+    sensitivities,
+)
 from .solve.scheme import GeneralizedAlpha
-from .solve.settings import Settings, State
+from .solve.settings import Settings, State, StaticSettings
 from .solve.statics import static
 from .solve.timeloop import simulate
 from .warmup import warmup
@@ -59,12 +68,12 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'morphlab' has no attribute {name!r}")
 
 __all__ = [
-    "Beam", "Constant", "ConvergenceError", "Custom", "FormatError", "GeneralizedAlpha",
-    "Interrupted", "Linear", "Model", "ModelError", "MorphlabError", "NonFiniteError", "Polynomial",
-    "Profile",
-    "ProfileError", "Ramp", "ResourceError", "ResponseError", "Result", "RigidBody",
-    "SensitivityError", "SensitivityResult", "Settings", "Sine", "SingularMatrixError",
-    "SmoothStep", "SolverError", "State", "StudyError", "System", "airfoil", "compile_model", "io",
-    "morphing", "plots", "responses", "sensitivities", "simulate", "static", "studies", "warmup",
-    "__version__",
+    "Adjoint", "Auto", "Beam", "ComplexStep", "Constant", "ConvergenceError", "Custom", "Direct",
+    "FiniteDifference", "FormatError", "GeneralizedAlpha", "Interrupted", "Linear", "Model",
+    "ModelError", "MorphlabError", "NonFiniteError", "Polynomial", "Profile", "ProfileError",
+    "Ramp", "ResourceError", "ResponseError", "Result", "RigidBody", "SensitivityError",
+    "SensitivityResult", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
+    "State", "StaticSettings", "Strategy", "StudyError", "System", "airfoil", "compile_model",
+    "io", "morphing", "plots", "responses", "sensitivities", "simulate", "static", "studies",
+    "warmup", "__version__",
 ]

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import ModelError
-from ..kernels.joints import ROW_ANGLE
+from ..kernels.joints import ANGLE_LIKE
 from ..model import Beam
 
 
@@ -144,10 +144,13 @@ def _scaled_jacobian(system, q=None):
         if info.frame_ref is not None:
             rot[info.frame_ref[:, 2]] = True
         if info.elements is not None:  # every frame's nodal rotations
-            nd = system.elem_dofs[info.elements][:, [2, 5]].ravel()
+            nd = system.arrays.elements.dofs[info.elements][:, [2, 5]].ravel()
             rot[nd[nd >= 0]] = True
     col = np.where(rot, 1.0 / L, 1.0)
-    row = np.where(system.con_kind == ROW_ANGLE, L, 1.0)
+    angle = np.zeros(system.n_con, dtype=bool)  # the rows measuring angles (the kinds say)
+    rows = system.arrays.rows
+    angle[rows.con] = ANGLE_LIKE[rows.kind]
+    row = np.where(angle, L, 1.0)
     return sp.diags(row) @ J @ sp.diags(col)
 
 

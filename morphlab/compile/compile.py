@@ -1,9 +1,10 @@
 """Model -> System: DOF numbering, invariants, constraint rows and the fixed CSC pattern.
 
-Compiling is done once per model (and once per perturbed model in a sensitivity run). The
-:class:`System` holds flat NumPy arrays only, all of one floating dtype (float64, or complex128
-when a design variable carries a complex-step perturbation), plus the index tables that map
-names to DOFs. Nothing here is in an inner loop: this is model-building code, kept in NumPy.
+Compiling is done once per model (and once per perturbed model of a finite-difference or
+complex-step comparison). The :class:`System` holds flat NumPy arrays only, all of one
+floating dtype (float64, or complex128 when a design variable carries a complex-step
+perturbation), plus the index tables that map names to DOFs. Nothing here is in an inner loop:
+this is model-building code, kept in NumPy.
 """
 
 from __future__ import annotations
@@ -13,11 +14,14 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ModelError
+from ..kernels.schema import KINDS, PATTERN, TOPOLOGY
+from ..kernels.system import KIND_NAMES, TIMED_NAMES
 from ..model import Beam, Model
 from ..model.profiles import Profile
-from . import bodies, forces, incremental, joints, loads  # noqa: F401 - they register the compile functions
+from . import bodies, forces, joints, loads  # noqa: F401 - they register the compile functions
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
+from .design import flatten
 from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
 from .system import System
@@ -33,38 +37,50 @@ def _is_complex(value) -> bool:
     return False
 
 
-def _items(model: Model) -> list:
-    """Every body, joint, load and force element of ``model``, in the order they compile
-    (point forces before line loads: the load table's order)."""
-    return [*model.bodies, *model.joints, *model.forces, *getattr(model, "line_loads", ()),
-            *model.torques, *getattr(model, "springs", ())]
+def items_of(model: Model) -> list:
+    """Every body, joint, load and force element of ``model``, in the order they compile."""
+    return [*model.bodies, *model.joints, *model.forces, *model.line_loads, *model.torques,
+            *model.springs, *getattr(model, "pressures", ())]
 
 
 def _dtype_of(model: Model):
     """complex128 if any number of the model is complex (a complex-step perturbation of a
-    design variable), else float64. Every attribute of every body, joint and load is looked
-    at, so a new kind of item needs nothing here."""
-    items = _items(model)
-    if _is_complex(model.gravity) or any(_is_complex(v) for item in items
+    design variable), else float64. Every attribute of every item is looked at, so a new kind
+    of item needs nothing here."""
+    if _is_complex(model.gravity) or any(_is_complex(v) for item in items_of(model)
                                          for v in vars(item).values()):
         return np.dtype(np.complex128)
     return np.dtype(np.float64)
 
 
-# what the Newton pattern is built from, and what it consists of (morphlab.pattern)
-_TOPOLOGY_KEYS = ("n_dof", "n_con", "body_ref", "flex_off", "flex_dof", "elem_fdof", "con_kind",
-                  "con_dofs", "load_dofs", "spring_kind", "spring_dofs", "line_off", "line_elem")
-_PATTERN_KEYS = ("indptr", "indices", "border_off", "border_map", "elem_map", "con_map_row",
-                 "con_map_col", "con_map_H", "load_map", "spring_map", "line_map")
+def _length_scale(model: Model) -> float:
+    """The model's size: the extent of its bodies and joint points (1 when they share one
+    point: a unit-agnostic "no scale")."""
+    extent = np.concatenate([np.real(np.asarray(b.nodes)) if isinstance(b, Beam)
+                             else np.real(np.asarray(b.position))[None] for b in model.bodies])
+    for j in model.joints:
+        if getattr(j, "at", None) is not None:
+            extent = np.vstack([extent, np.real(np.asarray(j.at))[None]])
+    size = float(np.ptp(extent, axis=0).max())
+    return size if size > 0 else 1.0
 
 
-def _same_topology(sysd: dict, like: System) -> bool:
-    return all(np.array_equal(sysd[k], getattr(like, k)) for k in _TOPOLOGY_KEYS)
+def _same_topology(arrays, n_dof, n_con, like: System) -> bool:
+    """Do ``arrays`` have the DOFs, items and topology of ``like``?"""
+    if (n_dof, n_con) != (like.n_dof, like.n_con):
+        return False
+    for name in KIND_NAMES:
+        a, b = getattr(arrays, name), like.table(name)
+        if (a is None) != (b is None):
+            return False
+        if a is not None and not all(np.array_equal(getattr(a, f.name), getattr(b, f.name))
+                                     for f in KINDS[name].by_role(TOPOLOGY)):
+            return False
+    return True
 
 
 def compile_model(model: Model, dtype=None, *, like: System | None = None,
-                  record: bool = False, on_built: Callable[[System], None] | None = None
-                  ) -> System:
+                  on_built: Callable[[System], None] | None = None) -> System:
     """Compile ``model`` into a :class:`System`.
 
     Parameters
@@ -74,18 +90,12 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         Force float64 or complex128; by default complex128 exactly when the model holds complex
         numbers (a complex-step perturbation).
     like : System, optional
-        A system of the same topology (a perturbed design of a sensitivity run): its Newton
-        pattern and scatter maps are reused when the DOF, element, joint and load tables are
-        equal (they are compared, and the pattern is built afresh when they are not). If
-        ``like`` was compiled with ``record=True``, the beam frames whose inputs equal its
-        own are copied from it, not compiled (:mod:`morphlab.compile.incremental`).
-    record : bool
-        Keep what the perturbed designs of a sensitivity run need to compile incrementally
-        (held while the returned system lives).
+        A system of the same topology (a perturbed design): its step-matrix pattern is reused
+        when the DOF, item and topology tables are equal (they are compared, and the pattern is
+        built afresh when they are not).
     on_built : callable, optional
         Called with the system as soon as its arrays are built, before the checks below run
-        the first kernels (:func:`morphlab.simulate` starts compiling kernels on a second
-        process there, ``morphlab.solve.precompile``).
+        the first kernels.
 
     Raises
     ------
@@ -94,36 +104,39 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         model size, or initial velocities violating them (when the model gives none, they are
         computed from the drives, :mod:`morphlab.compile.initial`); redundant or conflicting
         constraints (rank-deficient constraint Jacobian at the initial configuration, see
-        :func:`constraint_rank`).
+        :func:`~morphlab.compile.checks.constraint_rank`).
     """
     if not isinstance(model, Model):
         raise ModelError(f"compile_model expects a Model, got {type(model).__name__}")
     if not model.bodies:
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
-    builder = Builder(model, dt, record=record,
-                      prior=incremental.record_of(like) if like is not None else None)
-    for item in _items(model):
-        compile_item(item, builder)
-    patched = incremental.patched_arrays(builder) if builder.copied else None
-    sysd = dict(model=model, dtype=dt, **builder.arrays(patched[0] if patched else None))
-    if record:
-        incremental.keep_formed(builder, sysd)
-    extent = np.concatenate([np.real(np.asarray(b.nodes)) if isinstance(b, Beam)
-                             else np.real(np.asarray(b.position))[None] for b in model.bodies])
-    for j in model.joints:
-        if getattr(j, "at", None) is not None:
-            extent = np.vstack([extent, np.real(np.asarray(j.at))[None]])
-    # model size for the Newton test; a model whose bodies and joints share one point has no
-    # extent: fall back to 1 (a unit-agnostic "no scale")
-    size = float(np.ptp(extent, axis=0).max())
-    sysd["length_scale"] = size if size > 0 else 1.0
-    same = like is not None and _same_topology(sysd, like)
-    if same:
-        sysd.update({k: getattr(like, k) for k in _PATTERN_KEYS})
+    b = Builder(model, dt)
+    for item in items_of(model):
+        compile_item(item, b)
+    arrays = b.arrays(model.gravity)
+    n_dof, n_con = len(b.dof_names), len(b.con_names)
+    same = like is not None and _same_topology(arrays, n_dof, n_con, like)
+    if same:  # the pattern of ``like``: its pattern fields, indices and indptr
+        arrays = arrays._replace(**{
+            name: getattr(arrays, name)._replace(**{
+                f.name: getattr(like.table(name), f.name) for f in KINDS[name].by_role(PATTERN)})
+            for name in KIND_NAMES if getattr(arrays, name) is not None})
+        indices, indptr = like.indices, like.indptr
     else:
-        sysd.update(newton_pattern(sysd))
-    system = System(**sysd)
+        arrays, indices, indptr = newton_pattern(arrays, n_dof, n_con)
+    design, arrays = flatten(arrays, dt)
+    system = System(
+        model=model, dtype=dt, n_dof=n_dof, n_con=n_con,
+        q0=np.array(b.q0, dtype=dt), v0=np.array(b.v0, dtype=dt), arrays=arrays, design=design,
+        time_base={k: b.table(k).time_base(dt) for k in TIMED_NAMES},
+        time_profiles={k: list(b.table(k).profiles) for k in TIMED_NAMES},
+        names={k: list(b.table(k).names) for k in KIND_NAMES}, indices=indices, indptr=indptr,
+        bodies=b.bodies, dof_names=b.dof_names, con_names=b.con_names, con_joint=b.con_joint,
+        con_kind=np.array(b.con_kind, dtype=np.int64),
+        con_item=np.array(b.con_item, dtype=np.int64),
+        con_sign=np.array(b.con_sign, dtype=np.float64),
+        con_side=np.array(b.con_side, dtype=np.int64), length_scale=_length_scale(model))
     if on_built is not None:
         on_built(system)
     # a complex-step perturbation of ``like``: its real parts are those of ``like`` (to
@@ -137,8 +150,4 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         system.v0 = initial_velocities(system)
     if checked:
         check_initial(system, positions=False)
-    if record:
-        incremental.remember(system, builder.record)
-    if patched:
-        incremental.remember_fresh(system, patched[1])
     return system

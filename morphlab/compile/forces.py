@@ -32,8 +32,8 @@ def compile_spring(sp: Spring, b: Builder) -> None:
                          "configuration, where the direction of its force is undefined")
     rest = length if sp.rest_length is None else sp.rest_length
     u0 = np.stack([np.asarray(pa[1], dtype=b.dtype), np.asarray(pb[1], dtype=b.dtype)])
-    b.add_spring(SPRING_LENGTH, pa, pb, u0, [sp.stiffness, sp.damping, rest, sp.preload],
-                 sp.name)
+    b.table("springs").add(sp.name, u0=u0, par=[sp.stiffness, sp.damping, rest, sp.preload],
+                           kind=SPRING_LENGTH, dofs=np.stack([pa[0], pb[0]]))
 
 
 @compiles(RotationalSpring)
@@ -47,8 +47,9 @@ def compile_rotational_spring(sp: RotationalSpring, b: Builder) -> None:
         ends.append(_end(b, body, at if at is not None else (0.0, 0.0)))
     pa, pb = ends
     rest = pa[2] - pb[2] + sp.rest_angle
-    b.add_spring(SPRING_ANGLE, pa, pb, np.zeros((2, 2), dtype=b.dtype),
-                 [sp.stiffness, sp.damping, rest, sp.preload], sp.name)
+    b.table("springs").add(sp.name, u0=np.zeros((2, 2), dtype=b.dtype),
+                           par=[sp.stiffness, sp.damping, rest, sp.preload], kind=SPRING_ANGLE,
+                           dofs=np.stack([pa[0], pb[0]]))
 
 
 def line_integrals(X1, X2):
@@ -67,18 +68,20 @@ def line_integrals(X1, X2):
 
 @compiles(LineLoad)
 def compile_line_load(ld: LineLoad, b: Builder) -> None:
-    """A line load: one load of the load table (no point) and an entry per loaded element,
-    with the element's integrals in the frame that holds it."""
-    b.add_load((-np.ones(6, dtype=np.int64), np.zeros(2, dtype=b.dtype), 0.0), ld.q, ld.profile,
-               ld.name)
-    index = len(b.load["name"]) - 1
+    """A line load: one entry of the ``lines`` table per loaded element, with the element's
+    integrals in the frame that holds it."""
     info = b.bodies[ld.beam.name]
-    elem_body = np.concatenate(b.elem["body"])
+    E, B = b.table("elements"), b.table("bodies")
+    elem_body = np.concatenate(E.columns["body"])
+    elem_dofs = np.concatenate(E.columns["dofs"])
+    body_ref = np.concatenate(B.columns["ref"])
     nodes = np.asarray(ld.beam.nodes)
     for k in ld.elements:
         e = info.elements.start + int(k)
-        ref = b.body_ref[elem_body[e]]
+        ref = body_ref[elem_body[e]]
         origin = np.array([b.q0[ref[0]], b.q0[ref[1]]])
         At = rotation(b.q0[ref[2]]).T
         u0, N = line_integrals(At @ (nodes[k] - origin), At @ (nodes[k + 1] - origin))
-        b.add_line(index, e, u0.astype(b.dtype), N.astype(b.dtype))
+        b.table("lines").add(ld.name, base=np.asarray(ld.q), profile=ld.profile,
+                             u0=u0.astype(b.dtype), N=N.astype(b.dtype), ref=ref,
+                             dofs=elem_dofs[e])

@@ -23,9 +23,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..kernels import assemble as kassemble
+from ..kernels.ffrf import scratch
+from ..kernels.types import Level, Weights
 
 # weights of the step-matrix kernel for [M J^T; J 0]: inertia, multipliers, constraint rows
-_SADDLE_WEIGHTS = np.array([1.0, 1.0, 0.0, 1.0, 0.0])
+_SADDLE_WEIGHTS = Weights(1.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0)
 
 
 def needs_initial_velocities(system) -> bool:
@@ -37,16 +39,16 @@ def needs_initial_velocities(system) -> bool:
 
 
 def _saddle_matrix(system) -> sp.csc_matrix:
-    from .system import kernel_arrays
+    from .system import time_table
 
     dt = system.dtype
     n = system.n
-    data = np.zeros(system.nnz, dtype=dt)
+    data = np.zeros((1, system.nnz), dtype=dt)
     zero = np.zeros(system.n_dof, dtype=dt)
-    kassemble.step_matrix(kernel_arrays(system, dt), np.zeros(n, dtype=dt), system.q0, zero,
-                          0.0, 0.0, 1.0, _SADDLE_WEIGHTS, 0.0, 0.0,
-                          np.zeros((system.load_dofs.shape[0], 2), dtype=dt), data)
-    return sp.csc_matrix((data, system.indices, system.indptr), shape=(n, n))
+    x = Level(system.q0, zero, zero, np.zeros(system.n_con, dtype=dt))
+    kassemble.matrix(system.arrays, x, _SADDLE_WEIGHTS, time_table(system, np.zeros(1)), 0, 0,
+                     np.array([[1.0, 0.0, 0.0]]), data, scratch(system.count("flex"), zero))
+    return sp.csc_matrix((data[0], system.indices, system.indptr), shape=(n, n))
 
 
 def initial_velocities(system) -> np.ndarray:
@@ -56,7 +58,7 @@ def initial_velocities(system) -> np.ndarray:
     _, phid = system.constraint_violation(system.q0, np.zeros_like(system.q0), 0.0)
     A = _saddle_matrix(system)
     rhs = np.concatenate([np.zeros(n_dof, dtype=system.dtype), -phid])
-    ref = np.sort(system.body_ref.reshape(-1))
+    ref = np.sort(system.arrays.bodies.ref.reshape(-1))
     J_ref = A[n_dof:, :][:, ref].toarray()
     # the rank is decided on real parts: a complex-step perturbation takes the same branch
     if np.linalg.matrix_rank(np.real(J_ref)) == system.n_con:

@@ -1,13 +1,13 @@
 """Compile functions of the joints: each becomes scalar constraint rows
-(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE``, ``ROW_SLIDE``) between two
-material points.
+(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE`` of the ``rows`` table, the
+slide row of the ``slides`` table) between two material points.
 Formulation: ``docs/theory.md`` §4."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y
+from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
 from ..model import Drive, Fix, Ground, Prismatic, Revolute, RigidBody, Weld
 from .builder import Builder, compiles
 
@@ -20,10 +20,10 @@ def compile_pin(j: Revolute | Weld, b: Builder) -> None:
     pa, pb = b.point(j.a, j.at), b.point(j.b, j.at)
     ca = np.asarray(j.at) if isinstance(j.a, Ground) else np.zeros(2)
     cb = np.asarray(j.at) if isinstance(j.b, Ground) else np.zeros(2)
-    b.add_row(ROW_X, j, "x", pa, pb, -ca[0] + cb[0])
-    b.add_row(ROW_Y, j, "y", pa, pb, -ca[1] + cb[1])
+    b.add_row("rows", ROW_X, j, "x", pa, pb, -ca[0] + cb[0])
+    b.add_row("rows", ROW_Y, j, "y", pa, pb, -ca[1] + cb[1])
     if isinstance(j, Weld):
-        b.add_row(ROW_ANGLE, j, "r", pa, pb, pa[2] - pb[2])
+        b.add_row("rows", ROW_ANGLE, j, "r", pa, pb, pa[2] - pb[2])
 
 
 @compiles(Fix)
@@ -34,7 +34,7 @@ def compile_fix(j: Fix, b: Builder) -> None:
     for label in j.dofs:
         kind = {"x": ROW_X, "y": ROW_Y, "r": ROW_ANGLE}[label]
         c0 = pa[2] if kind == ROW_ANGLE else np.asarray(j.at)[kind]
-        b.add_row(kind, j, label, pa, ground, c0)
+        b.add_row("rows", kind, j, label, pa, ground, c0)
 
 
 @compiles(Drive)
@@ -43,7 +43,8 @@ def compile_drive(j: Drive, b: Builder) -> None:
     at = j.at if j.at is not None else (
         j.body.position if isinstance(j.body, RigidBody) else None)
     pa = b.point(j.body, at)
-    b.add_row(ROW_ANGLE, j, "r", pa, b.point(b.model.ground, at), pa[2], profile=j.profile)
+    b.add_row("rows", ROW_ANGLE, j, "r", pa, b.point(b.model.ground, at), pa[2],
+              profile=j.profile)
 
 
 def _angle(vec):
@@ -65,5 +66,5 @@ def compile_prismatic(j: Prismatic, b: Builder) -> None:
     if isinstance(j.a, Ground):  # the guide's point in the ground frame is ``at`` itself
         pa = (pa[0], np.asarray(j.at, dtype=b.dtype), 0.0)
     beta = _angle(np.asarray(j.axis)) + np.pi / 2 - pa[2]
-    b.add_row(ROW_SLIDE, j, "n", pb, pa, 0.0, beta=beta)
-    b.add_row(ROW_ANGLE, j, "r", pb, pa, pb[2] - pa[2])
+    b.add_row("slides", None, j, "n", pb, pa, 0.0, coef=beta)
+    b.add_row("rows", ROW_ANGLE, j, "r", pb, pa, pb[2] - pa[2])

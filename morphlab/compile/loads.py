@@ -12,7 +12,8 @@ from .builder import Builder, compiles
 @compiles(Force)
 def compile_force(f: Force, b: Builder) -> None:
     """A force of fixed global direction at a material point."""
-    b.add_load(b.point(f.body, f.at), f.force, f.profile, f.name)
+    dofs, u0, _ = b.point(f.body, f.at)
+    b.table("loads").add(f.name, base=np.asarray(f.force), profile=f.profile, u0=u0, dofs=dofs)
 
 
 @compiles(Torque)
@@ -23,4 +24,4 @@ def compile_torque(t: Torque, b: Builder) -> None:
     if isinstance(t.body, Beam):  # without ``at``: the drive node (docs/frames.md)
         k = t.body.nearest_node(t.at)[0] if t.at is not None else drive_node(t.body)
         dofs[:] = info.node_ref[k, 2], info.node_dofs[k, 2]
-    b.add_torque(dofs, t.magnitude, t.profile, t.name)
+    b.table("torques").add(t.name, base=t.magnitude, profile=t.profile, dofs=dofs)

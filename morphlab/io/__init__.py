@@ -13,14 +13,14 @@ Functions
 ``read_metadata(path)``
     The JSON metadata of either kind of file, without loading the arrays.
 
-File format (``format_version`` 1)
+File format (``format_version`` 2)
 ----------------------------------
 A file is an uncompressed ZIP archive of ``.npy`` members, i.e. a NumPy ``.npz`` file: it opens
 with ``numpy.load(path, allow_pickle=False)`` and holds no pickled Python objects. The member
 ``metadata`` is a 0-d unicode array with one JSON document::
 
     {"format": "morphlab-result" or "morphlab-arrays",
-     "format_version": 1,
+     "format_version": 2,
      "morphlab_version": "0.1.0",
      ...}
 
@@ -51,12 +51,16 @@ names); every other member is one array of the caller's dict under its own key.
     ``result/constraint_violation``, ``result/velocity_violation`` (n_t,)).
 ``"system"``
     The compiled :class:`~morphlab.compile.System` without its model: ``dtype``, ``n_dof``,
-    ``n_con``, ``length_scale``, ``dof_names``, ``con_names``, ``con_joint``; ``bodies`` (per
+    ``n_con``, ``length_scale``, ``dof_names``, ``con_names``, ``con_joint``; ``kinds`` (the
+    kinds of item the model has) and ``names`` (each kind's item names); ``bodies`` (per
     body: ``name, index, kind, elements`` and its arrays ``ref`` (3,), ``angle0``,
     ``node_dofs`` (n_node, 3), ``X`` (n_node, 2) as members ``system/bodies/<i>/<field>``);
-    the time profiles ``con_drive`` (``[row, profile]`` pairs), ``load_prof``, ``torque_prof``.
-    Every array of the System (``q0, v0, elem_B, elem_dofs, con_u0, indptr, ...``) is a member
-    ``system/<field>``.
+    ``time_profiles`` (per kind, ``[item, profile]`` pairs). Each kind's table is written
+    field by field as :mod:`morphlab.kernels.schema` declares it, members
+    ``system/arrays/<kind>/<field>`` (and ``system/arrays/gravity``), its time constants
+    ``system/time_base/<kind>``; every other array of the System (``q0, v0, indices, indptr,
+    con_sign, ...``) is a member ``system/<field>``. Files of format version 1 (the earlier
+    layout of the system) are refused with a :class:`~morphlab.errors.FormatError`.
 ``"bodies"``
     The bodies of the model (not its joints and loads, which live in the System arrays):
     ``{"kind": "rigid" | "beam", "name", <constructor parameters>}``, numbers inline or as

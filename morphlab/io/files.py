@@ -12,7 +12,10 @@ from .._version import __version__
 from ..errors import FormatError
 from .container import read_members, write_members
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: The first format version of this layout of the compiled system (one table per kind of
+#: item); result files of version 1 hold the earlier layout and are refused.
+SYSTEM_FORMAT = 2
 RESULT_FORMAT = "morphlab-result"
 SENSITIVITY_FORMAT = "morphlab-sensitivity"
 ARRAYS_FORMAT = "morphlab-arrays"

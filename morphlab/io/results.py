@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import FormatError
 from ..results.result import Result
 from ..sensitivity.api import SensitivityResult
-from ..solve.settings import Settings
+from ..solve.settings import Settings, StaticSettings
 from .encoding import Writer, decode
 from .files import (
     ARRAYS_FORMAT,
@@ -167,9 +167,10 @@ def _settings_from(st: dict | None, arrays: dict):
     if st is None:
         return None
     fields = decode(st["fields"], arrays)
-    if st.get("class") == "Settings":
-        names = {f.name for f in dataclasses.fields(Settings)}
-        return Settings(**{k: v for k, v in fields.items() if k in names})
+    for cls in (Settings, StaticSettings):
+        if st.get("class") == cls.__name__:
+            names = {f.name for f in dataclasses.fields(cls)}
+            return cls(**{k: v for k, v in fields.items() if k in names})
     return types.SimpleNamespace(**fields)
 
 

@@ -1,6 +1,7 @@
 """The compiled System and the model's bodies in a result file: the ``"system"``,
 ``"bodies"`` and ``"gravity"`` entries of the metadata and their members (format in
-:mod:`morphlab.io`)."""
+:mod:`morphlab.io`). The kinds' tables are written field by field as the schema declares them
+(:mod:`morphlab.kernels.schema`), so a new kind of item needs nothing here."""
 
 from __future__ import annotations
 
@@ -8,13 +9,17 @@ import dataclasses
 
 import numpy as np
 
+from ..compile.design import flatten
 from ..compile.system import BodyInfo, System
 from ..errors import FormatError
+from ..kernels.schema import KINDS, TIME
+from ..kernels.system import KIND_NAMES, SystemArrays
 from ..model import Beam, Model, RigidBody
 from .encoding import Writer, decode, decode_profile
 
 # System fields with their own representation (everything else: arrays or plain JSON values)
-_SYSTEM_SPECIAL = ("model", "dtype", "bodies", "con_drive", "load_prof", "torque_prof")
+_SYSTEM_SPECIAL = ("model", "dtype", "bodies", "arrays", "design", "time_base",
+                   "time_profiles", "names")
 
 
 def _body_params(body) -> tuple[str, dict]:
@@ -70,7 +75,9 @@ def rebuild_model(meta: dict, arrays: dict) -> Model:
 
 
 def system_meta(system: System, w: Writer) -> dict:
-    """The ``"system"`` entry: every field of ``system`` but its model."""
+    """The ``"system"`` entry: every field of ``system`` but its model; the kinds' arrays as
+    members ``system/arrays/<kind>/<field>`` (``system/arrays/gravity``), their time
+    constants as ``system/time_base/<kind>``."""
     sys_meta = {"dtype": np.dtype(system.dtype).str}
     for f in dataclasses.fields(system):
         val = getattr(system, f.name)
@@ -80,6 +87,23 @@ def system_meta(system: System, w: Writer) -> dict:
             w.array(f"system/{f.name}", val)
         else:
             sys_meta[f.name] = w.value(val, f"system/{f.name}", f"System.{f.name}")
+    w.array("system/arrays/gravity", np.asarray(system.arrays.gravity))
+    present = []
+    for kind in KIND_NAMES:
+        table = system.table(kind)
+        if table is None:
+            continue
+        present.append(kind)
+        for name, a in zip(table._fields, table):
+            w.array(f"system/arrays/{kind}/{name}", np.asarray(a))
+    sys_meta["kinds"] = present
+    for kind, base in system.time_base.items():
+        w.array(f"system/time_base/{kind}", np.asarray(base))
+    sys_meta["time_profiles"] = {
+        kind: [[int(i), w.profile(p, f"system/time_profiles/{kind}/{k}")]
+               for k, (i, p) in enumerate(items)]
+        for kind, items in system.time_profiles.items()}
+    sys_meta["names"] = {kind: list(v) for kind, v in system.names.items()}
     bodies = []
     for i, (name, info) in enumerate(system.bodies.items()):
         entry = {}
@@ -88,19 +112,15 @@ def system_meta(system: System, w: Writer) -> dict:
                                     f"BodyInfo {name!r}.{f.name}")
         bodies.append(entry)
     sys_meta["bodies"] = bodies
-    sys_meta["con_drive"] = [[int(row), w.profile(p, f"system/con_drive/{k}")]
-                             for k, (row, p) in enumerate(system.con_drive)]
-    sys_meta["load_prof"] = [w.profile(p, f"system/load_prof/{k}")
-                             for k, p in enumerate(system.load_prof)]
-    sys_meta["torque_prof"] = [w.profile(p, f"system/torque_prof/{k}")
-                               for k, p in enumerate(system.torque_prof)]
     return sys_meta
 
 
 def system_from(meta: dict, arrays: dict) -> System:
-    """The System of a file, its model rebuilt with the bodies only (:func:`rebuild_model`);
-    a field newer than the file is None."""
+    """The System of a file, its model rebuilt with the bodies only (:func:`rebuild_model`)."""
     sm = meta["system"]
+    if meta.get("format_version", 1) < 2:
+        raise FormatError("the file holds a compiled system of format version 1 (an earlier "
+                          "morphlab): run the analysis again to write it in this version")
     model = rebuild_model(meta, arrays)
     bodies = {}
     for entry in sm["bodies"]:
@@ -108,6 +128,22 @@ def system_from(meta: dict, arrays: dict) -> System:
         known = {f.name for f in dataclasses.fields(BodyInfo)}
         info = BodyInfo(**{k: v for k, v in d.items() if k in known})
         bodies[info.name] = info
+    dt = np.dtype(sm["dtype"])
+    tables = {}
+    for kind in KIND_NAMES:
+        if kind not in sm["kinds"]:
+            if not KINDS[kind].optional:
+                raise FormatError(f"the file's system has no table of {kind!r}")
+            tables[kind] = None
+            continue
+        fields = [f.name for f in KINDS[kind].fields if f.role != TIME]
+        try:
+            tables[kind] = KINDS[kind].arrays(*(arrays[f"system/arrays/{kind}/{f}"]
+                                               for f in fields))
+        except KeyError as exc:
+            raise FormatError(f"the file's system lacks {exc.args[0]!r}") from None
+    sys_arrays = SystemArrays(arrays["system/arrays/gravity"], **tables)
+    design, sys_arrays = flatten(sys_arrays, dt)
     kwargs = {}
     for f in dataclasses.fields(System):
         key = f"system/{f.name}"
@@ -116,13 +152,9 @@ def system_from(meta: dict, arrays: dict) -> System:
         elif f.name in sm and f.name not in _SYSTEM_SPECIAL:
             kwargs[f.name] = decode(sm[f.name], arrays)
     kwargs.update(
-        model=model, dtype=np.dtype(sm["dtype"]), bodies=bodies,
-        con_drive=[(row, decode_profile(p, arrays)) for row, p in sm["con_drive"]],
-        load_prof=[decode_profile(p, arrays) for p in sm["load_prof"]],
-        torque_prof=[decode_profile(p, arrays) for p in sm["torque_prof"]],
-    )
-    for f in dataclasses.fields(System):  # a field newer than the file: unknown
-        if f.name not in kwargs and f.default is dataclasses.MISSING \
-                and f.default_factory is dataclasses.MISSING:
-            kwargs[f.name] = None
+        model=model, dtype=dt, bodies=bodies, arrays=sys_arrays, design=design,
+        time_base={k: arrays[f"system/time_base/{k}"] for k in sm["time_profiles"]},
+        time_profiles={k: [(int(i), decode_profile(p, arrays)) for i, p in v]
+                       for k, v in sm["time_profiles"].items()},
+        names={k: list(v) for k, v in sm["names"].items()})
     return System(**kwargs)

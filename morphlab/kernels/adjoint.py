@@ -1,196 +1,305 @@
-"""The backward sweep of the discrete adjoint over a block of steps, in one compiled call.
+"""The discrete adjoint of the time loop: the forward record of each step and the backward
+sweep over a segment of steps in one compiled call (``docs/theory.md`` §7).
 
-The exact transpose of :func:`morphlab.kernels.direct.block_recursion` (``docs/theory.md`` §7):
-for the steps of a block from the last to the first, with the adjoint of the state ``x_n``
-held in ``Bq, Bv, Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own
-derivatives at ``n`` added first (``Hq, Hv, Ha, Hl`` (K, width, m)):
+The exact transpose of the direct recursion (:mod:`morphlab.kernels.direct`): for the steps of
+a segment from the last to the first, with the adjoint of the state ``x_k`` held in ``Bq, Bv,
+Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own derivatives at
+``k`` added first (``Hq, Hv, Ha, Hl`` (n_t, width, m)):
 
 * ``z̄ = (ā + bh2 q̄ + gh v̄ + ga ḡ, s λ̄)``;
-* ``μ = J^-T z̄`` with the step's kept factors, refined against the exact matrix at the
-  converged point where ``refine[j]``;
-* ``q̂̄ = q̄ - R_q^T μ``, ``v̂̄ = v̄ - R_v^T μ`` (the state matrices of
-  :func:`~morphlab.kernels.direct.split_matrices`, the same as the direct method's);
-* the adjoint of ``x_n-1`` through the predictors and, with the paper's weighting, the
-  old-level share.
+* ``μ = J^-T z̄`` with the step's kept factors;
+* the design's share ``grad_i -= (dR/dp_i)^T μ`` (:mod:`morphlab.kernels.pseudo`, over the
+  residual rows variable ``i``'s parts touch);
+* ``q̂̄ = q̄ - Dq^T μ``, ``v̂̄ = v̄ - Dv^T μ`` with the ``Dq``, ``Dv`` kept from the step's last
+  Newton fill (the direct method's reuse variant transposed; the exact variant forms them and
+  ``J*`` at the converged state and refines ``μ`` against ``J*``);
+* the adjoint of ``x_k-1`` through the predictors and, with the paper's weighting, the old
+  level's share.
 
-``μ`` of every step is returned in ``MU`` (K, n, m): the design enters afterwards, through
-the partial derivatives of the residual. At the initial solve (time index 0) the sweep stops
-with ``Bq, Bv`` holding the adjoints of ``q_0, q'_0`` to meet their derivatives from ``build``.
+At the initial solve (time index 0) the sweep stops with ``Bq, Bv`` holding the adjoints of
+``q_0, q'_0``, which meet their derivatives from ``build``.
 """
 
+from typing import NamedTuple
+
 import numpy as np
-from numba import njit
 
-from .direct import (
-    add_explicit_residual,
-    csc_residual_transposed,
-    csc_transposed_product,
-    elastic_share,
-    part_scratch,
-    parts_of,
-    split_matrices,
-    table_at,
-)
-from .newton import solve_factored_transposed
-from .system import set_design
+from ._jit import inner, kernel
+from .assemble import matrix
+from .newton import Factors, solve_factored_transposed
+from .pseudo import explicit
+from .types import Level
 
 
-@njit(cache=True, nogil=True)
-def adjoint_block(S, Q, V, A, L, w_new, has_old, w_old, F, k_new, scale, b0, b1, bh2, gh,
-                  indices, indptr, n_dof, pc, upd, Hq, Hv, Ha, Hl, Bq, Bv, Ba, Bg, Bl, mats,
-                  J, LU, piv, Lx, Ux, Ud, pattern, refine, n_refine, MU, refined):
-    """Steps ``K-1 .. 0`` of a block (module docstring). States ``(Q, V, A, L)[j + 1]`` are
-    step ``j``'s, ``[0]`` the one before the block; ``k_new`` (K,) their time indices; the
-    factors stacked as in ``block_recursion``; ``mats`` (3, nnz) scratch of the split
-    matrices, ``J`` (nnz,) of the exact matrix; ``refined`` (K,) gets the
-    relative residual of each refined solve. Returns the position of the initial solve in the
-    block (the sweep stops there), or -1. Runs without the GIL: the designs' compile goes on
-    on its thread meanwhile (``morphlab.sensitivity.adjoint``)."""
-    K = MU.shape[0]
-    n = indptr.shape[0] - 1
-    m = Bq.shape[1]
-    n_con = Bl.shape[0]
-    h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
-    ga, gan, ggn = upd[0], upd[1], upd[2]
-    zb = np.empty((n, m))
-    r = np.empty((n, m))
-    work = np.empty((n, m))
-    gb = np.empty((n_dof, m))
-    D0, Dq, Dv = mats[0], mats[1], mats[2]
-    for j in range(K - 1, -1, -1):
-        _add(Bq, Hq, j)
-        _add(Bv, Hv, j)
-        _add(Ba, Ha, j)
-        _add(Bl, Hl, j)
+class Keep(NamedTuple):
+    """The record of the steps ``k0 <= k < k0 + K`` a sensitivity method reads: row
+    ``k - k0`` of the factor values (``LU`` (K, n, n), ``piv`` (K, n) dense; ``Lx``, ``Ux``,
+    ``Ud`` (K, ...) sparse; the other kind's with no columns), of ``D`` (K, 2, nnz), the
+    ``Dq``, ``Dv`` of the step's last Newton fill, and row ``k - k0 + 1`` of the states ``Q,
+    V, A`` (K + 1, n_dof), ``L`` (K + 1, n_con) (row 0: the state before the first step,
+    which the caller writes). ``k0`` (1,) int64."""
+
+    LU: np.ndarray
+    piv: np.ndarray
+    Lx: np.ndarray
+    Ux: np.ndarray
+    Ud: np.ndarray
+    D: np.ndarray
+    Q: np.ndarray
+    V: np.ndarray
+    A: np.ndarray
+    L: np.ndarray
+    k0: np.ndarray
+
+
+class Sweep(NamedTuple):
+    """The adjoint state and buffers of a backward sweep: ``Bq, Bv, Ba, Bg`` (n_dof, m),
+    ``Bl`` (n_con, m) (module docstring); the responses' terms ``Hq, Hv, Ha`` (n_t, n_dof,
+    m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``; the
+    pseudo-load data ``ps`` with the residual
+    rows each variable touches ``RO`` (n_x + 1,), ``RI``; ``reuse``, ``refine`` as for the
+    direct method; the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``,
+    ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``col`` (n,), ``RN``, ``R0`` (n,), ``mask``
+    (n_flex,) bool, ``mats`` (6, nnz), ``refined`` (n_t,)."""
+
+    Bq: np.ndarray
+    Bv: np.ndarray
+    Ba: np.ndarray
+    Bg: np.ndarray
+    Bl: np.ndarray
+    Hq: np.ndarray
+    Hv: np.ndarray
+    Ha: np.ndarray
+    Hl: np.ndarray
+    h0: np.ndarray
+    ps: tuple
+    RO: np.ndarray
+    RI: np.ndarray
+    reuse: bool
+    refine: int
+    grad: np.ndarray
+    zb: np.ndarray
+    mu: np.ndarray
+    r: np.ndarray
+    work: np.ndarray
+    gb: np.ndarray
+    col: np.ndarray
+    RN: np.ndarray
+    R0: np.ndarray
+    mask: np.ndarray
+    mats: np.ndarray
+    refined: np.ndarray
+
+
+@inner
+def keep(K, F, data, x, k):
+    """Record step ``k``'s factors ``F``, the ``Dq``, ``Dv`` of its last fill ``data`` (3, nnz)
+    and its state ``x`` in ``K`` (None: nothing kept)."""
+    if K is None:
+        return
+    j = k - K.k0[0]
+    for r in range(x.q.shape[0]):
+        K.Q[j + 1, r] = x.q[r]
+        K.V[j + 1, r] = x.v[r]
+        K.A[j + 1, r] = x.a[r]
+    for r in range(x.lam.shape[0]):
+        K.L[j + 1, r] = x.lam[r]
+    if F.order is None:
+        for r in range(F.LU.shape[0]):
+            K.piv[j, r] = F.piv[r]
+            for c in range(F.LU.shape[1]):
+                K.LU[j, r, c] = F.LU[r, c]
+    else:
+        for p in range(F.Lx.shape[0]):
+            K.Lx[j, p] = F.Lx[p]
+        for p in range(F.Ux.shape[0]):
+            K.Ux[j, p] = F.Ux[p]
+        for p in range(F.Ud.shape[0]):
+            K.Ud[j, p] = F.Ud[p]
+    for p in range(data.shape[1]):
+        K.D[j, 0, p] = data[1, p]
+        K.D[j, 1, p] = data[2, p]
+
+
+@inner
+def kept_state(K, j):
+    """The state (:class:`~morphlab.kernels.types.Level`) of row ``j`` of the record."""
+    return Level(K.Q[j], K.V[j], K.A[j], K.L[j])
+
+
+@inner
+def kept_factor(K, F, j):
+    """The :class:`~morphlab.kernels.newton.Factors` of row ``j`` of ``K`` (the patterns of
+    ``F``)."""
+    return Factors(K.LU[j], K.piv[j], K.Lx[j], K.Ux[j], K.Ud[j], F.order, F.pattern)
+
+
+@inner
+def _transposed_product(data, indices, indptr, n_cols, x, out):
+    """``out[:n_cols] -= A[:, :n_cols]^T x`` for the CSC matrix ``A`` and ``x`` (n, m)."""
+    m = x.shape[1]
+    for j in range(n_cols):
+        for p in range(indptr[j], indptr[j + 1]):
+            row = indices[p]
+            aij = data[p]
+            for i in range(m):
+                out[j, i] -= aij * x[row, i]
+
+
+@inner
+def _design_share(a, M, T, sc, new, old, k):
+    """``grad_i -= (dR_k/dp_i)^T mu`` for every variable, over the rows it touches."""
+    ps, mu, col = a.ps, a.mu, a.col
+    m = mu.shape[1]
+    for i in range(a.grad.shape[0]):
+        explicit(ps, M, T, i, new, sc.w_new, k, a.mask, col, a.RN, a.R0)
+        if sc.has_old:
+            explicit(ps, M, T, i, old, sc.w_old, k - 1, a.mask, col, a.RN, a.R0)
+        for j in range(a.RO[i], a.RO[i + 1]):
+            r = a.RI[j]
+            for c in range(m):
+                a.grad[i, c] -= col[r] * mu[r, c]
+            col[r] = 0.0
+
+
+@kernel
+def begin(a, sc, k):
+    """Add the responses' terms at time index ``k`` to the adjoint state and form ``z̄`` into
+    ``a.zb`` and ``a.mu`` (which the caller then solves in place with ``J^-T``)."""
+    n_dof = a.Bq.shape[0]
+    n_con = a.Bl.shape[0]
+    m = a.Bq.shape[1]
+    bh2, gh, ga = sc.pc[5], sc.pc[6], sc.upd[0]
+    h = k - a.h0[0]
+    if 0 <= h < a.Hq.shape[0]:
         for i in range(n_dof):
             for c in range(m):
-                zb[i, c] = Ba[i, c] + bh2 * Bq[i, c] + gh * Bv[i, c] + ga * Bg[i, c]
+                a.Bq[i, c] += a.Hq[h, i, c]
+                a.Bv[i, c] += a.Hv[h, i, c]
+                a.Ba[i, c] += a.Ha[h, i, c]
         for i in range(n_con):
             for c in range(m):
-                zb[n_dof + i, c] = scale * Bl[i, c]
-        split_matrices(S, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new, scale, b0, b1,
-                       F[k_new[j]], mats)
-        mu = MU[j]
-        mu[:, :] = zb
-        solve_factored_transposed(mu, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j], pattern)
-        if refine[j]:
-            for p in range(J.shape[0]):
-                J[p] = D0[p] + bh2 * Dq[p] + gh * Dv[p]
-            for _ in range(n_refine):
-                csc_residual_transposed(J, indices, indptr, mu, zb, r)
-                solve_factored_transposed(r, work, LU[j], piv[j], Lx[j], Ux[j], Ud[j],
-                                          pattern)
-                mu += r
-            rr, bb = csc_residual_transposed(J, indices, indptr, mu, zb, r)
-            refined[j] = rr / max(bb, 1e-300)
-        csc_transposed_product(Dq, indices, indptr, n_dof, mu, Bq)  # now the adjoint of q_hat
-        csc_transposed_product(Dv, indices, indptr, n_dof, mu, Bv)  # and of v_hat
-        if k_new[j] == 0:
-            return j
-        gb[:, :] = Bg
+                a.Bl[i, c] += a.Hl[h, i, c]
+    for i in range(n_dof):
+        for c in range(m):
+            a.zb[i, c] = a.Ba[i, c] + bh2 * a.Bq[i, c] + gh * a.Bv[i, c] + ga * a.Bg[i, c]
+    for i in range(n_con):
+        for c in range(m):
+            a.zb[n_dof + i, c] = sc.w_new.scale * a.Bl[i, c]
+    for i in range(n_dof + n_con):
+        for c in range(m):
+            a.mu[i, c] = a.zb[i, c]
+
+
+@kernel
+def exact_matrices(a, M, T, sc, new, k):
+    """The exact variant: ``D0, Dq, Dv`` at the converged state ``new`` of time index ``k``
+    into ``a.mats[0:3]`` and ``J* = D0 + bh2 Dq + gh Dv`` over ``a.mats[0]``."""
+    C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    matrix(M, new, sc.w_new, T, np.int64(0), k, C, a.mats[0:3], a.ps.WL)
+    bh2, gh = sc.pc[5], sc.pc[6]
+    J = a.mats[0]
+    for p in range(J.shape[0]):
+        J[p] = J[p] + bh2 * a.mats[1, p] + gh * a.mats[2, p]
+
+
+@kernel
+def refinement_residual(a, csc):
+    """``a.r = z̄ - J*^T μ`` (the exact variant's refinement); returns ``(|r|, |z̄|)``."""
+    return _residual_t(a.mats[0], csc, a.mu, a.zb, a.r)
+
+
+@kernel
+def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
+    """The rest of step ``k`` once ``a.mu`` holds ``μ``: the design's share (the step from the
+    state ``old`` to ``new``), the adjoints of the predictors (``Dq``, ``Dv`` the step's,
+    (nnz,)) and of the previous state. Returns True at the initial solve (``k == 0``)."""
+    n_dof = a.Bq.shape[0]
+    n_con = a.Bl.shape[0]
+    n = n_dof + n_con
+    m = a.Bq.shape[1]
+    h, cqa, cqg, cva, cvg = sc.pc[0], sc.pc[1], sc.pc[2], sc.pc[3], sc.pc[4]
+    gan, ggn = sc.upd[1], sc.upd[2]
+    _design_share(a, M, T, sc, new, old, k)
+    _transposed_product(Dq, csc.indices, csc.indptr, n_dof, a.mu, a.Bq)  # adjoint of q_hat
+    _transposed_product(Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bv)  # and of v_hat
+    if k == 0:
+        return True
+    for i in range(n_dof):
+        for c in range(m):
+            a.gb[i, c] = a.Bg[i, c]
+    for i in range(n_dof):
+        for c in range(m):
+            qhb = a.Bq[i, c]
+            vhb = a.Bv[i, c]
+            a.Bg[i, c] = cqg * qhb + cvg * vhb + ggn * a.gb[i, c]
+            a.Ba[i, c] = cqa * qhb + cva * vhb + gan * a.gb[i, c]
+            a.Bv[i, c] = h * qhb + vhb
+    for i in range(n_con):
+        for c in range(m):
+            a.Bl[i, c] = 0.0
+    if sc.has_old:  # the paper's weighting: the old level's share
+        C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        matrix(M, old, sc.w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
+        _transposed_product(a.mats[4], csc.indices, csc.indptr, n_dof, a.mu, a.Bq)
+        _transposed_product(a.mats[5], csc.indices, csc.indptr, n_dof, a.mu, a.Bv)
+        for i in range(n):
+            for c in range(m):
+                a.r[i, c] = 0.0
+        _transposed_product(a.mats[3], csc.indices, csc.indptr, n, a.mu, a.r)
         for i in range(n_dof):
             for c in range(m):
-                qhb = Bq[i, c]
-                vhb = Bv[i, c]
-                Bg[i, c] = cqg * qhb + cvg * vhb + ggn * gb[i, c]
-                Ba[i, c] = cqa * qhb + cva * vhb + gan * gb[i, c]
-                Bv[i, c] = h * qhb + vhb
-        Bl[:, :] = 0.0
-        if has_old:  # the paper's weighting: the old level's share
-            split_matrices(S, Q[j], V[j], A[j], L[j], w_old, scale, b0, b1, F[k_new[j] - 1],
-                           mats)
-            csc_transposed_product(Dq, indices, indptr, n_dof, mu, Bq)
-            csc_transposed_product(Dv, indices, indptr, n_dof, mu, Bv)
-            r[:, :] = 0.0
-            csc_transposed_product(D0, indices, indptr, n, mu, r)
-            for i in range(n_dof):
-                for c in range(m):
-                    Ba[i, c] += r[i, c]
-            for i in range(n_con):
-                for c in range(m):
-                    Bl[i, c] += r[n_dof + i, c] / scale
-    return -1
+                a.Ba[i, c] += a.r[i, c]
+        for i in range(n_con):
+            for c in range(m):
+                a.Bl[i, c] += a.r[n_dof + i, c] / sc.w_new.scale
+    return False
 
 
-@njit(cache=True)
-def _add(B, H, j):
-    """``B += H[j]`` when the response terms ``H`` are present (an empty ``H``: none)."""
-    if H.shape[0] > 0:
-        for i in range(B.shape[0]):
-            for c in range(B.shape[1]):
-                B[i, c] += H[j, i, c]
+@kernel(nogil=True)
+def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo):
+    """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
+    factors, fills and states recorded in ``K`` (:class:`Keep`); ``F``: a factor of the run,
+    for the patterns. Returns True when it reached the initial solve."""
+    n = a.mu.shape[0]
+    m = a.mu.shape[1]
+    for k in range(k_hi, k_lo - 1, -1):
+        begin(a, sc, k)
+        j = k - K.k0[0]
+        new, old = kept_state(K, j + 1), kept_state(K, j)
+        Fk = kept_factor(K, F, j)
+        solve_factored_transposed(a.mu, a.work, Fk)
+        if a.reuse:
+            Dq, Dv = K.D[j, 0], K.D[j, 1]
+        else:
+            exact_matrices(a, M, T, sc, new, k)
+            Dq, Dv = a.mats[1], a.mats[2]
+            if a.refine > 0:
+                for _ in range(a.refine):
+                    refinement_residual(a, csc)
+                    solve_factored_transposed(a.r, a.work, Fk)
+                    for i in range(n):
+                        for c in range(m):
+                            a.mu[i, c] += a.r[i, c]
+                rr, bb = refinement_residual(a, csc)
+                a.refined[k] = rr / max(bb, 1e-300)
+        if finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
+            return True
+    return False
 
 
-@njit(cache=True, nogil=True)
-def explicit_adjoint_block(S, W, D, parts, lin, touched, Q, V, A, L, w_new, has_old, w_old,
-                           scale, b0, b1, TAB, tab_of, k_old, k_new, n_dof, pert, i0, i1, work,
-                           MU, grad):
-    """The design's share of the adjoint gradient over a block of steps, for the variables
-    ``i0 .. i1-1``: ``grad[i] -= sum_j (dR_j/dp_i)^T MU[j]`` (n_x, m), with the partial
-    derivative of step ``j``'s residual along variable ``i`` formed as in
-    :func:`~morphlab.kernels.direct.explicit_loads` (complex step or forward difference over
-    the parts ``i`` changes, its time arrays table ``tab_of[i]`` of ``TAB``, the nominal's
-    table 0; design ``i`` written into ``W``, a copy of ``S``, from its rows ``D``) and
-    contracted with ``MU[j]`` (K, n, m) over the residual rows
-    those parts can touch only (``touched = (offsets, rows)``, CSR over the variables). No
-    (n, n_x) right-hand side is formed: the cost per variable is that of its parts, not of the
-    system. A variable that changes only element stiffnesses and damping (``lin``, as for
-    :func:`~morphlab.kernels.direct.explicit_loads`) contributes ``w_f (dK_e q_e + dC_e
-    q_e')`` in real arithmetic. ``work`` (2, n): scratch residuals, zero on entry and on
-    exit. Runs without the GIL: the sweep's next block, and other ranges of variables (each
-    with its own ``W`` and ``work``), go on meanwhile (``morphlab.sensitivity.adjoint``)."""
-    r_off, r_idx = touched
-    forward = pert[0].imag == 0.0
-    R = work[0]
-    R0 = work[1]
-    scr = part_scratch(S, Q[0], R)
-    flex_on = np.zeros(S.flex_dof.shape[0], dtype=np.bool_)
-    m = grad.shape[1]
-    lin_off = lin[0]
-    fl = np.empty(6)
-    share = np.zeros(R.shape[0])
-    for i in range(i0, i1):
-        if lin_off[i + 1] > lin_off[i]:  # the stiffness alone: real products per element
-            rows = r_idx[r_off[i]:r_off[i + 1]]  # they hold the elements' coordinates
-            for j in range(MU.shape[0]):
-                elastic_share(S, lin, i, Q, V, j, has_old, w_new, w_old, fl, share)
-                for r in rows:
-                    for c in range(m):
-                        grad[i, c] -= share[r] * MU[j, r, c]
-                    share[r] = 0.0
-            continue
-        pi, flex = parts_of(parts, i, flex_on)
-        if (pi.bodies.size + pi.rows.size + pi.loads.size + pi.torques.size
-                + pi.springs.size) == 0:
-            continue  # the variable changes only the initial state
-        rows = r_idx[r_off[i]:r_off[i + 1]]
-        for k in flex:
-            flex_on[k] = True
-        set_design(W, S, D, i, True)
-        ti = tab_of[i]
-        for j in range(MU.shape[0]):
-            ko, kn = k_old[j], k_new[j]
-            add_explicit_residual(W, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
-                                  table_at(TAB, kn, ti), has_old, Q[j], V[j], A[j], L[j],
-                                  w_old, table_at(TAB, ko, ti), scale, b0, b1, n_dof, R, scr)
-            if forward:
-                add_explicit_residual(S, pi, Q[j + 1], V[j + 1], A[j + 1], L[j + 1], w_new,
-                                      table_at(TAB, kn, 0), has_old, Q[j], V[j], A[j], L[j],
-                                      w_old, table_at(TAB, ko, 0), scale, b0, b1, n_dof, R0,
-                                      scr)
-                for r in rows:
-                    d = ((R[r] - R0[r]) / pert[i]).real
-                    for c in range(m):
-                        grad[i, c] -= d * MU[j, r, c]
-                    R[r] = 0.0
-                    R0[r] = 0.0
-            else:  # Re(R / (i h)) = Im(R) / h
-                h = pert[i].imag
-                for r in rows:
-                    d = R[r].imag / h
-                    for c in range(m):
-                        grad[i, c] -= d * MU[j, r, c]
-                    R[r] = 0.0
-        set_design(W, S, D, i, False)
-        for k in flex:
-            flex_on[k] = False
+@inner
+def _residual_t(data, csc, x, b, r):
+    """``r = b - A^T x``; returns ``(|r|_F, |b|_F)``."""
+    n = csc.indptr.shape[0] - 1
+    for j in range(n):
+        for i in range(x.shape[1]):
+            r[j, i] = b[j, i]
+    _transposed_product(data, csc.indices, csc.indptr, n, x, r)
+    rr = 0.0
+    bb = 0.0
+    for j in range(n):
+        for i in range(x.shape[1]):
+            rr += r[j, i] * r[j, i]
+            bb += b[j, i] * b[j, i]
+    return np.sqrt(rr), np.sqrt(bb)

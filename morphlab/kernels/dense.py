@@ -7,10 +7,10 @@ Gaussian elimination (``P A = L U``, the pivot the entry of largest magnitude in
 Golub & Van Loan, Matrix Computations, 4th ed., alg. 3.4.1), float64 or complex128.
 """
 
-from numba import njit
+from ._jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def csc_to_dense(data, indices, indptr, out):
     """Scatter the CSC matrix ``(data, indices, indptr)`` into the square array ``out``."""
     out[:, :] = 0.0
@@ -19,7 +19,7 @@ def csc_to_dense(data, indices, indptr, out):
             out[indices[p], j] = data[p]
 
 
-@njit(cache=True)
+@kernel
 def lu_factor(A, piv):
     """Factor ``A`` (n, n) in place into unit-lower ``L`` and upper ``U`` with row
     interchanges ``piv`` (``piv[k]``: the row swapped with row ``k`` at step ``k``).
@@ -52,7 +52,7 @@ def lu_factor(A, piv):
     return -1
 
 
-@njit(cache=True)
+@kernel
 def lu_solve(LU, piv, b):
     """Solve ``A x = b`` for ``b`` (n, m) in place with the factors of :func:`lu_factor`."""
     n = LU.shape[0]
@@ -81,7 +81,7 @@ def lu_solve(LU, piv, b):
             b[i, c] *= inv
 
 
-@njit(cache=True)
+@kernel
 def lu_solve_transposed(LU, piv, b):
     """Solve ``A^T x = b`` for ``b`` (n, m) in place with the factors of :func:`lu_factor`:
     ``A = P^T L U``, so ``U^T y = b``, ``L^T w = y`` and ``x = P^T w`` (the row interchanges

@@ -1,16 +1,16 @@
 """Planar FFRF bodies: mass matrix, quadratic-velocity, gravity and elastic forces, and their
 exact derivatives, for all bodies of a system in one call.
 
-Body data (see ``morphlab.compile``)
-------------------------------------
-Every body — rigid or flexible — has reference coordinates ``(R_x, R_y, theta)`` at global DOFs
-``body_ref[b]`` and scalar invariants ``body_scal[b] = (m, I_u_x, I_u_y, I_00)``. A flexible
-body also owns the entries ``flex_off[b]:flex_off[b+1]`` of the *flex* arrays: the global DOF of
-each retained deformation coordinate (``flex_dof``) and the invariants ``I_S`` (``flex_IS``,
-shape (n_flex, 2)), ``I_0S`` and ``I_0ĨS``. Its elements hold their body-frame matrices
-``M_ff``, ``S̃`` and ``K_ff`` (6 x 6) and the flex index of each element DOF (``elem_fdof``,
-``-1`` where the reference condition removes the DOF). A rigid body is the special case with no
-flex coordinates (and ``I_u = 0`` when the reference point is the centre of mass).
+Three kinds of item hold a body's data (:data:`BODIES`, :data:`FLEX`, :data:`ELEMENTS`).
+Every body — rigid or flexible — has reference coordinates ``(R_x, R_y, theta)`` at the DOFs
+``bodies.ref[b]`` and scalar invariants ``bodies.scal[b] = (m, I_u_x, I_u_y, I_00)``. A
+flexible body owns the flexible coordinates ``bodies.flex[b, 0] <= k < bodies.flex[b, 1]``:
+the global DOF of each retained deformation coordinate (``flex.dof``) and the invariants
+``I_S`` (``flex.IS``), ``I_0S`` and ``I_0ĨS``. Its elements hold their body-frame matrices
+``M_ff``, ``S̃`` and ``K_ff`` (6 x 6) and the flexible coordinate of each element DOF
+(``elements.fdof``, ``-1`` where the reference condition removes the DOF). A rigid body is the
+special case with no flexible coordinates (``I_u = 0``: its reference point is the centre of
+mass).
 
 With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)`` and ``Ĩ = [[0, -1], [1, 0]]``
 (``docs/theory.md`` §2.5-§2.9)::
@@ -24,83 +24,146 @@ With ``c_u = I_u + I_S q_f``, ``A = Rot(theta)`` and ``Ĩ = [[0, -1], [1, 0]]``
               th'^2 (I_0S + M_ff q_f) - 2 th' S̃ q_f' ]
     Q_g   = [ m g ; (AĨ c_u).g ; I_S^T A^T g ]
 
-and the body's share of the generalized-alpha residual is
-``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)``.
+and the body's share of the residual is ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v -
+Q_g)``. With the damping ``beta_d`` and the gravity ``g`` held, the share is linear in the
+remaining design data (invariants and element matrices together): a sensitivity pseudo-load
+of a section or material variable is this kernel evaluated with the data's derivatives in
+their place (``morphlab.kernels.pseudo``).
 
-All kernels run unchanged for float64 and complex128 arrays, and for a real state with complex
-body data (a sensitivity pseudo-load): temporaries that hold products with the data take the
-dtype of the output array (``R`` or ``data``), those that hold the state its own.
+The kernels run unchanged for float64 and complex128 (all arrays of one call share the
+dtype). A call evaluates the parts of :class:`~morphlab.kernels.system.Parts` it is given:
+every body and element for a step, those a design variable changes for a pseudo-load, at a
+cost that grows with the parts: the gathered coordinates and element products live in a
+:class:`Scratch` that is zero between calls.
 """
 
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from ._jit import inner, kernel
+from .schema import Kind, design, pattern, register, topology
+
+BODIES = register(Kind("bodies", [
+    design("scal", (4,), "m, I_u_x, I_u_y, I_00", linear=True),
+    design("damp", (), "stiffness-proportional damping beta_d"),
+    topology("ref", (3,), "DOFs of R_x, R_y, theta"),
+    topology("flex", (2,), "the body's flexible coordinates: first, stop"),
+    pattern("block", (3, 3), "positions of the 3 x 3 reference block"),
+], "one floating frame: a rigid body, or one frame of a beam", module=__name__))
+Bodies = BODIES.arrays
+
+FLEX = register(Kind("flex", [
+    design("IS", (2,), "I_S of the coordinate", linear=True),
+    design("I0S", (), "I_0S", linear=True),
+    design("I0IS", (), "I_0ĨS", linear=True),
+    topology("dof", (), "global DOF of the coordinate"),
+    pattern("border", (2, 3), "positions of (reference row i, this column), then "
+                              "(this row, reference column i)"),
+], "a flexible (deformation) coordinate of a body", module=__name__))
+Flex = FLEX.arrays
+
+ELEMENTS = register(Kind("elements", [
+    design("M", (6, 6), "element M_ff in the body frame", linear=True),
+    design("St", (6, 6), "element S̃", linear=True),
+    design("K", (6, 6), "element stiffness", linear=True),
+    design("B", (2, 2, 6), "stress map: ends x fibres x element DOFs (results only)",
+           linear=True),
+    topology("body", (), "the body of the element"),
+    topology("fdof", (6,), "flexible coordinate of each element DOF (-1: removed)"),
+    topology("dofs", (6,), "global DOF of each element DOF (-1: removed; results only)"),
+    pattern("map", (6, 6), "positions of the element entries"),
+], "an Euler-Bernoulli beam element of a body", module=__name__))
+Elements = ELEMENTS.arrays
 
 
-@njit(cache=True)
-def _flex_products(q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-                   elems, n_flex, full, like):
-    """Gather flex coordinates and form the element-wise products used by forces and Jacobians.
+@BODIES.pattern_of
+def body_coordinates(S, n_dof: int) -> dict:
+    """(row, column) of each body's 3 x 3 reference block."""
+    ref = S.bodies.ref
+    return {"block": (ref[:, :, None], ref[:, None, :])}
 
-    ``full=False`` (the residual) forms ``Mq, Ma, Sq, Sv`` and the elastic plus damping force
-    ``Kd = K (q_f + beta_d q_f')`` (one product: ``beta_d`` is the body's); ``full=True`` (the
-    Jacobian, which takes ``K`` itself) forms ``Mq, Mv, Sq, Sv, Sa`` and no ``Kd``.
 
-    ``full`` is passed as ``np.bool_``, a run-time value: a literal ``True``/``False`` would make
-    Numba compile this function twice.
+@FLEX.pattern_of
+def flex_coordinates(S, n_dof: int) -> dict:
+    """(row, column) of each coordinate's border entries with its body's reference
+    coordinates: (reference row i, this column), then (this row, reference column i)."""
+    B, Fx = S.bodies, S.flex
+    owner = np.repeat(np.arange(B.ref.shape[0]), B.flex[:, 1] - B.flex[:, 0])
+    ref = B.ref[owner]  # (n_flex, 3)
+    dof = np.broadcast_to(Fx.dof[:, None], ref.shape)
+    return {"border": (np.stack([ref, dof], axis=1), np.stack([dof, ref], axis=1))}
 
-    Only the elements listed in ``elems`` contribute (all of them, except when a sensitivity
-    pseudo-load evaluates just the parts a design variable changes).
 
-    Returns ``qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd`` (each (n_flex + 1,); zeros where not
-    formed; the gathered state in its dtype, the products in that of ``like``, the caller's
-    output array). Element DOFs removed by a reference condition (``elem_fdof == -1``) read and
-    write the extra slot ``n_flex``, which holds zero coordinates, so the element loop has no
-    branches.
-    """
-    dt = like.dtype
+@ELEMENTS.pattern_of
+def element_coordinates(S, n_dof: int) -> dict:
+    """(row, column) of the element entries (-1 for removed DOFs)."""
+    fd = S.elements.fdof
+    gd = np.where(fd >= 0, S.flex.dof[np.maximum(fd, 0)] if S.flex.dof.size else -1, -1)
+    return {"map": (gd[:, :, None], gd[:, None, :])}
+
+
+class Scratch(NamedTuple):
+    """Zero-between-calls work arrays of the body kernels: ``q`` (3, n_flex + 1) the gathered
+    ``q_f, q_f', q_f''``; ``p`` (7, n_flex + 1) the element products ``M q, M q', M a, S̃ q,
+    S̃ q', S̃ a, K (q + beta q')``; ``idx`` (6,) int64 and ``loc`` (4, 6): one element's
+    coordinates, values and damped values. Column ``n_flex`` stands for removed DOFs."""
+
+    q: np.ndarray
+    p: np.ndarray
+    idx: np.ndarray
+    loc: np.ndarray
+
+
+@kernel
+def scratch(n_flex, like):
+    """A :class:`Scratch` for ``n_flex`` coordinates in the dtype of ``like``."""
     m = n_flex + 1
-    qf = np.zeros(m, dtype=q.dtype)
-    vf = np.zeros(m, dtype=q.dtype)
-    af = np.zeros(m, dtype=q.dtype)
-    for k in range(n_flex):
-        qf[k] = q[flex_dof[k]]
-        vf[k] = v[flex_dof[k]]
-        af[k] = a[flex_dof[k]]
-    Mq = np.zeros(m, dtype=dt)
-    Mv = np.zeros(m, dtype=dt)
-    Ma = np.zeros(m, dtype=dt)
-    Sq = np.zeros(m, dtype=dt)
-    Sv = np.zeros(m, dtype=dt)
-    Sa = np.zeros(m, dtype=dt)
-    Kd = np.zeros(m, dtype=dt)
-    _element_products(qf, vf, af, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-                      elems, n_flex, full, Mq, Mv, Ma, Sq, Sv, Sa, Kd,
-                      np.empty(6, dtype=np.int64), np.empty(6, dtype=q.dtype),
-                      np.empty(6, dtype=q.dtype), np.empty(6, dtype=q.dtype),
-                      np.empty(6, dtype=dt))
-    return qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd
+    return Scratch(np.zeros((3, m), dtype=like.dtype), np.zeros((7, m), dtype=like.dtype),
+                   np.zeros(6, dtype=np.int64), np.zeros((4, 6), dtype=like.dtype))
 
 
-@njit(cache=True, inline="always")
-def _element_products(qf, vf, af, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-                      elems, n_flex, full, Mq, Mv, Ma, Sq, Sv, Sa, Kd, idx, ql, vl, al, dl):
-    """The element loop of :func:`_flex_products`: add the products of the elements ``elems``
-    to ``Mq ... Kd`` (n_flex + 1,) from the gathered coordinates ``qf, vf, af``; ``idx``
-    (6,) int64, ``ql, vl, al`` (6,) (``qf``'s dtype), ``dl`` (6,) (``Mq``'s): scratch."""
+@inner
+def _gather(B, Fx, E, x, bodies, elems, flex_on, W):
+    """Gather ``q_f, q_f', q_f''`` of the coordinates of ``elems`` and the masked coordinates
+    of ``bodies`` into ``W.q``."""
+    fdof, dof = E.fdof, Fx.dof
+    Wq = W.q
     for e in elems:
-        beta = body_damp[elem_body[e]]
         for i in range(6):
-            f = elem_fdof[e, i]
+            f = fdof[e, i]
+            if f >= 0:
+                Wq[0, f] = x.q[dof[f]]
+                Wq[1, f] = x.v[dof[f]]
+                Wq[2, f] = x.a[dof[f]]
+    for b in bodies:
+        for k in range(B.flex[b, 0], B.flex[b, 1]):
+            if flex_on[k]:
+                Wq[0, k] = x.q[dof[k]]
+                Wq[1, k] = x.v[dof[k]]
+                Wq[2, k] = x.a[dof[k]]
+
+
+@inner
+def _products(B, E, elems, full, W):
+    """Add the element products of ``elems`` to ``W.p`` from ``W.q``: ``M q, S̃ q, S̃ q'``
+    always; with ``full`` (the matrix) ``M q', S̃ a``, else (the residual) ``M a`` and the
+    elastic plus damping force ``K (q_f + beta q_f')``."""
+    n_flex = W.q.shape[1] - 1
+    qf, vf, af = W.q[0], W.q[1], W.q[2]
+    Mq, Mv, Ma, Sq, Sv, Sa, Kd = W.p[0], W.p[1], W.p[2], W.p[3], W.p[4], W.p[5], W.p[6]
+    idx = W.idx
+    ql, vl, al, dl = W.loc[0], W.loc[1], W.loc[2], W.loc[3]
+    for e in elems:
+        beta = B.damp[E.body[e]]
+        for i in range(6):
+            f = E.fdof[e, i]
             idx[i] = f if f >= 0 else n_flex
             ql[i] = qf[idx[i]]
             vl[i] = vf[idx[i]]
             al[i] = af[idx[i]]
             dl[i] = ql[i] + beta * vl[i]
-        Me = elem_M[e]
-        Se = elem_St[e]
-        Ke = elem_K[e]
+        Me, Se, Ke = E.M[e], E.St[e], E.K[e]
         for i in range(6):
             mq = 0.0 * dl[0]
             sq = 0.0 * dl[0]
@@ -131,16 +194,37 @@ def _element_products(qf, vf, af, elem_body, body_damp, elem_fdof, elem_M, elem_
                 Kd[k] += kd
 
 
-@njit(cache=True, inline="always")
-def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af, Mq, Sq,
-               flex_on):
-    """Reductions over a body's flex coordinates shared by residual and Jacobian:
-    ``c_u`` (2), ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``,
-    ``q_f^T M q_f``, ``q_f^T M q_f'``, ``I_0ĨS.a_f`` and ``(S̃ q_f).a_f``, over the
-    coordinates with ``flex_on`` set (all of them but in a sensitivity pseudo-load)."""
-    m = body_scal[b, 0]
-    cux = body_scal[b, 1]
-    cuy = body_scal[b, 2]
+@inner
+def _clear(B, E, bodies, elems, flex_on, W):
+    """Zero what :func:`_gather` and :func:`_products` wrote (the column ``n_flex`` too)."""
+    n_flex = W.q.shape[1] - 1
+    for e in elems:
+        for i in range(6):
+            f = E.fdof[e, i]
+            k = f if f >= 0 else n_flex
+            for r in range(3):
+                W.q[r, k] = 0.0
+            for r in range(7):
+                W.p[r, k] = 0.0
+    for b in bodies:
+        for k in range(B.flex[b, 0], B.flex[b, 1]):
+            if flex_on[k]:
+                for r in range(3):
+                    W.q[r, k] = 0.0
+                for r in range(7):
+                    W.p[r, k] = 0.0
+
+
+@inner
+def _sums(B, Fx, b, flex_on, W):
+    """Reductions over a body's coordinates (those with ``flex_on`` set): ``c_u`` (2),
+    ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``, ``q_f^T M q_f``,
+    ``q_f^T M q_f'``, ``I_0ĨS.a_f`` and ``(S̃ q_f).a_f``."""
+    qf, vf, af = W.q[0], W.q[1], W.q[2]
+    Mq, Sq = W.p[0], W.p[3]
+    m = B.scal[b, 0]
+    cux = B.scal[b, 1]
+    cuy = B.scal[b, 2]
     isax = 0.0 * m
     isay = 0.0 * m
     isvx = 0.0 * m
@@ -151,160 +235,74 @@ def _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
     qMv = 0.0 * m
     i0is_a = 0.0 * m
     sq_a = 0.0 * m
-    for k in range(flex_off[b], flex_off[b + 1]):
+    for k in range(B.flex[b, 0], B.flex[b, 1]):
         if not flex_on[k]:
             continue
-        cux += flex_IS[k, 0] * qf[k]
-        cuy += flex_IS[k, 1] * qf[k]
-        isax += flex_IS[k, 0] * af[k]
-        isay += flex_IS[k, 1] * af[k]
-        isvx += flex_IS[k, 0] * vf[k]
-        isvy += flex_IS[k, 1] * vf[k]
-        i0s_q += flex_I0S[k] * qf[k]
-        i0s_v += flex_I0S[k] * vf[k]
+        cux += Fx.IS[k, 0] * qf[k]
+        cuy += Fx.IS[k, 1] * qf[k]
+        isax += Fx.IS[k, 0] * af[k]
+        isay += Fx.IS[k, 1] * af[k]
+        isvx += Fx.IS[k, 0] * vf[k]
+        isvy += Fx.IS[k, 1] * vf[k]
+        i0s_q += Fx.I0S[k] * qf[k]
+        i0s_v += Fx.I0S[k] * vf[k]
         qMq += qf[k] * Mq[k]
         qMv += Mq[k] * vf[k]
-        i0is_a += flex_I0IS[k] * af[k]
+        i0is_a += Fx.I0IS[k] * af[k]
         sq_a += Sq[k] * af[k]
     return cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a
 
 
-@njit(cache=True, inline="always")
-def _rotated(c, s, cux, cuy, isax, isay, isvx, isvy):
-    """``A c_u``, ``AĨ c_u``, ``A I_S a_f``, ``AĨ I_S a_f``, ``A I_S q_f'``, ``AĨ I_S q_f'``
-    (each an (x, y) pair) for ``A`` the rotation by the body angle (``c``, ``s`` its cosine
-    and sine; ``AĨ x = (-(A x)_y, (A x)_x)``)."""
-    cx, cy = c * cux - s * cuy, s * cux + c * cuy
-    ax, ay = c * isax - s * isay, s * isax + c * isay
-    vx, vy = c * isvx - s * isvy, s * isvx + c * isvy
-    return (cx, cy), (-cy, cx), (ax, ay), (-ay, ax), (vx, vy), (-vy, vx)
-
-
-@njit(cache=True)
-def body_residual(S, q, v, a, wm, wf, parts, R):
-    """Add the bodies' ``w_m M(q) a + w_f (K q_f + beta_d K q_f' - Q_v - Q_g)`` to ``R``.
+@inner
+def residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W):
+    """Add ``w.wm M(q) a + w.wf (K q_f + beta_d K q_f' - Q_v - Q_g)`` of the bodies
+    ``bodies`` (with the elements ``elems`` and the coordinates with ``flex_on`` set) to ``R``.
 
     Parameters
     ----------
-    q, v, a : (n_dof,)
-        Generalized coordinates, velocities, accelerations (one dtype).
-    wm, wf : scalar
-        Weights of the inertia term and of the force terms.
-    S : SystemArrays
-        The system (:mod:`morphlab.kernels.system`).
-    parts : Parts
-        The bodies, elements and flexible coordinates evaluated: all of them for the residual.
-        A sensitivity pseudo-load passes only those whose data a design variable changes (and
-        the coordinates of its elements); with a real state the skipped parts carry no
-        imaginary part (complex step) and cancel in a difference, so the derivative is exact
-        although the real part is not the residual's.
+    B, Fx, E : the arrays of :data:`BODIES`, :data:`FLEX`, :data:`ELEMENTS`
+    g : (2,)
+        Gravitational acceleration.
+    x : :class:`~morphlab.kernels.types.Level`
+    w : :class:`~morphlab.kernels.types.Weights`
+    bodies, elems : int64 arrays; flex_on : (n_flex,) bool
+        What is evaluated: everything for a step; for a pseudo-load the parts whose data a
+        design variable changes (the derivative of the left-out parts is zero).
     R : (>= n_dof,), in/out
-        Residual; the body rows are added to.
+    W : :class:`Scratch`, zero on entry and on return
     """
-    bodies, elems, flex_on = parts.bodies, parts.elements, parts.flex
+    if B is None:  # the model has none of this kind
+        return
     if bodies.shape[0] == 0:
         return
-    flex_dof = S.flex_dof
-    n_flex = flex_dof.shape[0]
-    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, Kd = _flex_products(
-        q, v, a, flex_dof, S.elem_body, S.body_damp, S.elem_fdof, S.elem_M, S.elem_St, S.elem_K,
-        elems, n_flex, np.bool_(False), R
-    )
-    _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R)
-
-
-class PartScratch(NamedTuple):
-    """Scratch of :func:`body_part_residual`, made once per pseudo-load kernel call
-    (``kernels.direct.part_scratch``): ``q`` (3, n_flex + 1) the gathered coordinates (the
-    state's dtype), ``p`` (7, n_flex + 1) the element products (the residual's), both kept
-    zero between calls; ``idx`` (6,) int64, ``loc`` (3, 6) and ``dl`` (6,): one element's
-    indices, coordinates and damped coordinates."""
-
-    q: np.ndarray
-    p: np.ndarray
-    idx: np.ndarray
-    loc: np.ndarray
-    dl: np.ndarray
-
-
-@njit(cache=True, inline="always")
-def body_part_residual(S, q, v, a, wm, wf, parts, R, W):
-    """:func:`body_residual` over a few parts (a sensitivity pseudo-load) at a cost that
-    grows with the parts, not with the system: the gathered coordinates and the element
-    products live in the scratch ``W`` (:class:`PartScratch`), whose arrays ``W.q`` and ``W.p``
-    are zero on entry and are left zero; only the coordinates of the listed elements and the
-    masked coordinates of the listed bodies are gathered. The numbers are
-    :func:`body_residual`'s, term by term."""
-    bodies, elems, flex_on = parts.bodies, parts.elements, parts.flex
-    if bodies.shape[0] == 0:
-        return
-    flex_off, flex_dof, elem_fdof = S.flex_off, S.flex_dof, S.elem_fdof
-    n_flex = flex_dof.shape[0]
-    Wq, Wp = W.q, W.p
-    qf, vf, af = Wq[0], Wq[1], Wq[2]
-    Mq, Mv, Ma, Sq, Sv, Sa, Kd = Wp[0], Wp[1], Wp[2], Wp[3], Wp[4], Wp[5], Wp[6]
-    for e in elems:
-        for i in range(6):
-            f = elem_fdof[e, i]
-            if f >= 0:
-                qf[f] = q[flex_dof[f]]
-                vf[f] = v[flex_dof[f]]
-                af[f] = a[flex_dof[f]]
+    wm, wf = w.wm, w.wf
+    _gather(B, Fx, E, x, bodies, elems, flex_on, W)
+    _products(B, E, elems, np.bool_(False), W)
+    q, v, a = x.q, x.v, x.a
+    Mq, Ma, Sq, Sv, Kd = W.p[0], W.p[2], W.p[3], W.p[4], W.p[6]
+    gx = g[0]
+    gy = g[1]
     for b in bodies:
-        for k in range(flex_off[b], flex_off[b + 1]):
-            if flex_on[k]:
-                qf[k] = q[flex_dof[k]]
-                vf[k] = v[flex_dof[k]]
-                af[k] = a[flex_dof[k]]
-    _element_products(qf, vf, af, S.elem_body, S.body_damp, elem_fdof, S.elem_M, S.elem_St,
-                      S.elem_K, elems, n_flex, np.bool_(False), Mq, Mv, Ma, Sq, Sv, Sa, Kd,
-                      W.idx, W.loc[0], W.loc[1], W.loc[2], W.dl)
-    _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R)
-    for e in elems:  # leave the scratch zero (the slot n_flex included)
-        for i in range(6):
-            f = elem_fdof[e, i]
-            _clear(Wq, Wp, f if f >= 0 else n_flex)
-    for b in bodies:
-        for k in range(flex_off[b], flex_off[b + 1]):
-            if flex_on[k]:
-                _clear(Wq, Wp, k)
-
-
-@njit(cache=True, inline="always")
-def _clear(Wq, Wp, k):
-    for r in range(Wq.shape[0]):
-        Wq[r, k] = 0.0
-    for r in range(Wp.shape[0]):
-        Wp[r, k] = 0.0
-
-
-@njit(cache=True, inline="always")
-def _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, Kd, R):
-    """The rows of the bodies ``bodies`` (:func:`body_residual`) from the gathered
-    coordinates and the element products."""
-    body_ref, body_scal, flex_off, flex_dof = S.body_ref, S.body_scal, S.flex_off, S.flex_dof
-    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
-    gx = S.gravity[0]
-    gy = S.gravity[1]
-    for b in bodies:
-        iR0 = body_ref[b, 0]
-        iR1 = body_ref[b, 1]
-        ith = body_ref[b, 2]
-        m = body_scal[b, 0]
+        iR0 = B.ref[b, 0]
+        iR1 = B.ref[b, 1]
+        ith = B.ref[b, 2]
+        m = B.scal[b, 0]
         th = q[ith]
         thd = v[ith]
         tha = a[ith]
         c = np.cos(th)
         s = np.sin(th)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
-         sq_a) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
-                            Mq, Sq, flex_on)
+         sq_a) = _sums(B, Fx, b, flex_on, W)
         # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
-        ((Acx, Acy), (AIcx, AIcy), (Aisa_x, Aisa_y), _, _,
-         (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
+        Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
+        AIcx, AIcy = -Acy, Acx
+        Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
+        Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
+        AIisv_x, AIisv_y = -Aisv_y, Aisv_x
         aRx = a[iR0]
         aRy = a[iR1]
-        mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
+        mthth = B.scal[b, 3] + 2.0 * i0s_q + qMq
         # inertia
         R[iR0] += wm * (m * aRx + AIcx * tha + Aisa_x)
         R[iR1] += wm * (m * aRy + AIcy * tha + Aisa_y)
@@ -321,90 +319,72 @@ def _body_rows(S, q, v, a, wm, wf, bodies, flex_on, qf, vf, af, Mq, Ma, Sq, Sv, 
         ATay = -s * aRx + c * aRy
         ATgx = c * gx + s * gy
         ATgy = -s * gx + c * gy
-        for k in range(flex_off[b], flex_off[b + 1]):
+        for k in range(B.flex[b, 0], B.flex[b, 1]):
             if not flex_on[k]:
                 continue
-            i = flex_dof[k]
-            isx = flex_IS[k, 0]
-            isy = flex_IS[k, 1]
-            R[i] += wm * (isx * ATax + isy * ATay + (flex_I0IS[k] + Sq[k]) * tha + Ma[k])
-            qvf = thd * thd * (flex_I0S[k] + Mq[k]) - 2.0 * thd * Sv[k]
+            i = Fx.dof[k]
+            isx = Fx.IS[k, 0]
+            isy = Fx.IS[k, 1]
+            R[i] += wm * (isx * ATax + isy * ATay + (Fx.I0IS[k] + Sq[k]) * tha + Ma[k])
+            qvf = thd * thd * (Fx.I0S[k] + Mq[k]) - 2.0 * thd * Sv[k]
             qgf = isx * ATgx + isy * ATgy
             R[i] += wf * (Kd[k] - qvf - qgf)
+    _clear(B, E, bodies, elems, flex_on, W)
 
 
-@njit(cache=True, inline="always")
+@inner
 def add_split(out, C, p, x0, xq, xv):
-    """Add an entry ``x0 + bh2 xq + gh xv`` of the Newton matrix at position ``p`` of every
-    output: ``out[r, p] += C[r][0] x0 + C[r][1] xq + C[r][2] xv`` (``out`` (m, nnz), ``C`` m
-    triples; see :func:`body_jacobian`)."""
-    for r in range(len(C)):
-        c = C[r]
-        out[r, p] += c[0] * x0 + c[1] * xq + c[2] * xv
+    """``out[r, p] += C[r, 0] x0 + C[r, 1] xq + C[r, 2] xv`` for every output ``r``."""
+    for r in range(C.shape[0]):
+        out[r, p] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
 
 
-@njit(cache=True)
-def body_jacobian(S, q, v, a, cm, cf, C, out):
-    """Add every body's block of ``d(residual)/d(a)`` to the CSC data arrays ``out``.
+@inner
+def matrix(B, Fx, E, g, x, w, C, out, W):
+    """Add every body's block of the step matrix to the CSC data arrays ``out`` (m, nnz).
 
-    The residual block is ``cm M(q) a + cf F(q, q')`` with ``q = q_pred + bh2 a`` and
-    ``q' = qd_pred + gh a``, so the block is ``cm (M + bh2 d(Ma)/dq) + cf (bh2 dF/dq + gh dF/dq')``
-    (paper eq. 30; every term included): ``D0 + bh2 Dq + gh Dv`` with ``D0 = cm M``,
-    ``Dq = cm d(Ma)/dq + cf dF/dq`` and ``Dv = cf dF/dq'``. Output ``r`` receives
-    ``C[r][0] D0 + C[r][1] Dq + C[r][2] Dv``: ``C = ((1, bh2, gh),)`` gives the Newton matrix,
-    the identity the three matrices in one pass (``kernels.direct.split_matrices``).
-
-    Parameters
-    ----------
-    cm, cf : scalar
-        Weights of the inertia and force terms (``1 - alpha_m``, ``1 - alpha_f``).
-    C : tuple of m tuples of 3 floats
-        Coefficients of ``D0, Dq, Dv`` in each output (a tuple, not an array: its values stay
-        in registers while the outputs are written).
-    S : SystemArrays
-        The system (:mod:`morphlab.kernels.system`); ``S.border_off`` are the offsets of each
-        body's border entries in ``S.border_map``: the 3 x 3 reference block, then the
-        3 x n_f reference-row/flex-column entries, then the n_f x 3 flex-row/reference-column
-        entries (row-major within each part); ``S.border_map``, ``S.elem_map`` the position in
-        the data arrays of every border and element entry (``-1``: skipped).
-    out : (m, nnz), in/out
-        CSC data arrays over the Newton matrix's pattern.
+    The block of ``w.wm M(q) a + w.wf F(q, q')`` along ``a`` is ``D0 + bh2 Dq + gh Dv`` with
+    ``D0 = wm M``, ``Dq = wm d(Ma)/dq + wf dF/dq`` and ``Dv = wf dF/dq'`` (paper eq. 30,
+    every term included); output ``r`` receives ``C[r, 0] D0 + C[r, 1] Dq + C[r, 2] Dv``
+    (:mod:`morphlab.kernels.types`). Positions: ``bodies.block``, ``flex.border``,
+    ``elements.map`` (``-1``: skipped). ``W``: a :class:`Scratch`, zero on entry and return.
     """
-    body_ref, body_scal, body_damp, flex_off, flex_dof = (S.body_ref, S.body_scal, S.body_damp,
-                                                          S.flex_off, S.flex_dof)
-    flex_IS, flex_I0S, flex_I0IS = S.flex_IS, S.flex_I0S, S.flex_I0IS
-    elem_body, elem_fdof, elem_M, elem_St, elem_K = (S.elem_body, S.elem_fdof, S.elem_M, S.elem_St,
-                                                     S.elem_K)
-    border_off, border_map, elem_map = S.border_off, S.border_map, S.elem_map
-    gravity = S.gravity
-    n_flex = flex_dof.shape[0]
-    qf, vf, af, Mq, Mv, Ma, Sq, Sv, Sa, _ = _flex_products(
-        q, v, a, flex_dof, elem_body, body_damp, elem_fdof, elem_M, elem_St, elem_K,
-        np.arange(elem_fdof.shape[0]), n_flex, np.bool_(True), out
-    )
+    if B is None:  # the model has none of this kind
+        return
+    cm, cf = w.wm, w.wf
+    q, v, a = x.q, x.v, x.a
+    n_flex = Fx.dof.shape[0]
+    elems = np.arange(E.fdof.shape[0])
+    bodies = np.arange(B.ref.shape[0])
     all_flex = np.ones(n_flex, dtype=np.bool_)
-    gx = gravity[0]
-    gy = gravity[1]
+    _gather(B, Fx, E, x, bodies, elems, all_flex, W)
+    _products(B, E, elems, np.bool_(True), W)
+    Mq, Mv, Sq, Sv, Sa = W.p[0], W.p[1], W.p[3], W.p[4], W.p[5]
+    gx = g[0]
+    gy = g[1]
     # blk[k]: the 3 x 3 reference block of D0 (k = 0), Dq (1) and Dv (2)
     blk = np.zeros((3, 3, 3), dtype=out.dtype)
-    for b in range(body_ref.shape[0]):
-        iR0 = body_ref[b, 0]
-        iR1 = body_ref[b, 1]
-        ith = body_ref[b, 2]
-        m = body_scal[b, 0]
+    for b in range(B.ref.shape[0]):
+        iR0 = B.ref[b, 0]
+        iR1 = B.ref[b, 1]
+        ith = B.ref[b, 2]
+        m = B.scal[b, 0]
         th = q[ith]
         thd = v[ith]
         tha = a[ith]
         c = np.cos(th)
         s = np.sin(th)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
-         _) = _body_sums(b, body_scal, flex_off, flex_IS, flex_I0S, flex_I0IS, qf, vf, af,
-                            Mq, Sq, all_flex)
-        ((Acx, Acy), (AIcx, AIcy), _, (AIisa_x, AIisa_y), (Aisv_x, Aisv_y),
-         (AIisv_x, AIisv_y)) = _rotated(c, s, cux, cuy, isax, isay, isvx, isvy)
+         _) = _sums(B, Fx, b, all_flex, W)
+        Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
+        AIcx, AIcy = -Acy, Acx
+        Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
+        AIisa_x, AIisa_y = -Aisa_y, Aisa_x
+        Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
+        AIisv_x, AIisv_y = -Aisv_y, Aisv_x
         aRx = a[iR0]
         aRy = a[iR1]
-        mthth = body_scal[b, 3] + 2.0 * i0s_q + qMq
+        mthth = B.scal[b, 3] + 2.0 * i0s_q + qMq
         # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
         blk[:] = 0.0
         # mass
@@ -429,74 +409,75 @@ def body_jacobian(S, q, v, a, cm, cf, C, out):
         blk[2, 2, 2] = cf * 2.0 * (i0s_v + qMv)
         # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
         blk[1, 2, 2] += cf * (Acx * gx + Acy * gy)
-        o = border_off[b]
         for i in range(3):
             for j in range(3):
-                p = border_map[o + 3 * i + j]
+                p = B.block[b, i, j]
                 if p >= 0:
                     add_split(out, C, p, blk[0, i, j], blk[1, i, j], blk[2, i, j])
-        f0 = flex_off[b]
-        nf = flex_off[b + 1] - f0
-        o_rf = o + 9
-        o_fr = o + 9 + 3 * nf
-        for kk in range(nf):
-            k = f0 + kk
-            isx = flex_IS[k, 0]
-            isy = flex_IS[k, 1]
+        for k in range(B.flex[b, 0], B.flex[b, 1]):
+            isx = Fx.IS[k, 0]
+            isy = Fx.IS[k, 1]
             Aisx = c * isx - s * isy
             Aisy = s * isx + c * isy
             AIisx = -Aisy
             AIisy = Aisx
+            bd = Fx.border[k]
             # rows R (0, 1), th (2); column f_k
             # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
-            p = border_map[o_rf + kk]
+            p = bd[0, 0]
             if p >= 0:
                 add_split(out, C, p, cm * Aisx, cm * AIisx * tha - cf * thd * thd * Aisx,
                           cf * 2.0 * thd * AIisx)
-            p = border_map[o_rf + nf + kk]
+            p = bd[0, 1]
             if p >= 0:
                 add_split(out, C, p, cm * Aisy, cm * AIisy * tha - cf * thd * thd * Aisy,
                           cf * 2.0 * thd * AIisy)
-            mthf = flex_I0IS[k] + Sq[k]
+            mthf = Fx.I0IS[k] + Sq[k]
             # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
             # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
-            p = border_map[o_rf + 2 * nf + kk]
+            p = bd[0, 2]
             if p >= 0:
                 add_split(out, C, p, cm * mthf,
-                          cm * (AIisx * aRx + AIisy * aRy + tha * 2.0 * (flex_I0S[k] + Mq[k])
+                          cm * (AIisx * aRx + AIisy * aRy + tha * 2.0 * (Fx.I0S[k] + Mq[k])
                                 - Sa[k]) - cf * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy)),
-                          cf * 2.0 * thd * (flex_I0S[k] + Mq[k]))
+                          cf * 2.0 * thd * (Fx.I0S[k] + Mq[k]))
             # row f_k; columns R_x, R_y, th
-            p = border_map[o_fr + 3 * kk]
+            p = bd[1, 0]
             if p >= 0:
                 add_split(out, C, p, cm * Aisx, 0.0, 0.0)
-            p = border_map[o_fr + 3 * kk + 1]
+            p = bd[1, 1]
             if p >= 0:
                 add_split(out, C, p, cm * Aisy, 0.0, 0.0)
             # d(M a)_f/d th = (AĨ I_S_k).a_R; Q_g,f = I_S^T A^T g: d/d th = (AĨ I_S_k).g
             # Q_v,f = th'^2 (I_0S + M q_f) - 2 th' S̃ q_f': d/d th' = 2 th'(I_0S + Mq) - 2 S̃ q_f'
-            p = border_map[o_fr + 3 * kk + 2]
+            p = bd[1, 2]
             if p >= 0:
                 add_split(out, C, p, cm * mthf,
                           cm * (AIisx * aRx + AIisy * aRy) - cf * (AIisx * gx + AIisy * gy),
-                          -cf * (2.0 * thd * (flex_I0S[k] + Mq[k]) - 2.0 * Sv[k]))
-    # ---- flex-flex block, element by element: cm M_ff - cf bh2 th'^2 M_ff
-    # + cf (bh2 + gh beta) K + (cm bh2 th'' + cf gh 2 th') S̃
-    for e in range(elem_fdof.shape[0]):
-        b = elem_body[e]
-        ith = body_ref[b, 2]
-        thd = v[ith]
-        tha = a[ith]
-        beta = body_damp[b]
-        for r in range(len(C)):
-            c0, cq, cv = C[r]
+                          -cf * (2.0 * thd * (Fx.I0S[k] + Mq[k]) - 2.0 * Sv[k]))
+    _clear(B, E, bodies, elems, all_flex, W)
+    _element_blocks(B, E, x, cm, cf, C, out)
+
+
+@inner
+def _element_blocks(B, E, x, cm, cf, C, out):
+    """The flex-flex block, element by element: ``cm M_ff - cf bh2 th'^2 M_ff + cf (bh2 + gh
+    beta) K + (cm bh2 th'' + cf gh 2 th') S̃`` in the split form."""
+    for e in range(E.fdof.shape[0]):
+        b = E.body[e]
+        ith = B.ref[b, 2]
+        thd = x.v[ith]
+        tha = x.a[ith]
+        beta = B.damp[b]
+        for r in range(C.shape[0]):
+            c0, cq, cv = C[r, 0], C[r, 1], C[r, 2]
             coefM = c0 * cm - cq * cf * thd * thd
             coefK = cf * (cq + cv * beta)
             coefS = cq * cm * tha + cv * cf * 2.0 * thd
             o_r = out[r]
             for i in range(6):
                 for j in range(6):
-                    p = elem_map[e, i, j]
+                    p = E.map[e, i, j]
                     if p >= 0:
-                        o_r[p] += (coefM * elem_M[e, i, j] + coefK * elem_K[e, i, j]
-                                   + coefS * elem_St[e, i, j])
+                        o_r[p] += (coefM * E.M[e, i, j] + coefK * E.K[e, i, j]
+                                   + coefS * E.St[e, i, j])

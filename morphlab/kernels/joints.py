@@ -1,26 +1,28 @@
 """Scalar constraint rows with exact derivatives (the point loads, which share their point
-kinematics, are in :mod:`morphlab.kernels.loads`).
+kinematics, are in :mod:`morphlab.kernels.loads`; the slide rows of prismatic joints in
+:mod:`morphlab.kernels.slides`).
 
-Every joint of ``morphlab`` is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 0`` of two kinds:
+Every joint is a set of scalar rows ``Phi_i = g_i(q) - c_i(t) = 0`` (:data:`ROWS`), each of
+one kind:
 
 * :data:`ROW_X` / :data:`ROW_Y` (0 / 1): the x / y component of ``r_P - r_Q``, with
   ``r = R + A (u0 + w)`` for a material point of a body (``w`` the nodal displacement of a beam
   node, zero for a rigid body point);
 * :data:`ROW_ANGLE` (2): the angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` (``phi`` the nodal
   rotation);
-* :data:`ROW_SLIDE` (3): the distance of P from a line through Q fixed in Q's body,
-  ``n(psi) . (r_P - r_Q)`` with ``n = (cos psi, sin psi)`` and ``psi = theta_Q + phi_Q + beta``
-  (``beta`` the normal's angle in Q's frame): the row of a prismatic joint that keeps P on the
-  guide. Unlike the other kinds it couples both sides (its Hessian has P-Q blocks). Its code
-  is compiled only for models with extra items: the kernels take the switch
-  ``S.extra_items`` (``True``, or ``None``) as the argument ``extra``, and Numba drops a
-  branch ``if extra is not None`` for an argument typed ``None`` (``kernels.system``).
+* :data:`ROW_GEAR` (3): the angle ``(theta_P + phi_P) - r (theta_Q + phi_Q)`` with the ratio
+  ``r`` in ``u0[1, 2]``: a gear pair or coupler.
 
 A side (P or Q) is described by the global DOFs ``(R_x, R_y, theta, u, v, phi)`` of its point
-(``-1`` where absent; all ``-1`` for the ground), its body-frame position ``u0[0:2]`` and an
-angle ``u0[2]`` in the body frame (``beta`` of a slide row's Q; unused otherwise). Revolute =
-an x and a y row; weld = x, y and angle rows; a ground fix any subset; a driving constraint
-a kind-2 row with a time-dependent ``c``; prismatic = a slide row and an angle row.
+(``-1`` where absent; all ``-1`` for the ground), its body-frame position ``u0[side, 0:2]``
+and a coefficient ``u0[side, 2]`` (the gear ratio of side Q; unused otherwise). Revolute = an
+x and a y row; weld = x, y and angle rows; a ground fix any subset; a driving constraint an
+angle row with a time-dependent ``c``.
+
+What the other stages need to know of a row kind is in the tables :data:`POINT_HESSIAN`
+(the row has the one-side Hessian of a material point: the step-matrix pattern) and
+:data:`ANGLE_LIKE` (the row measures an angle: the scaling of the rank checks), and in
+:func:`reaction_directions` (the force and moment a unit multiplier applies: the reactions).
 
 The acceleration-level right-hand side with Baumgarte-type stabilization (part of the residual,
 so it is differentiated with it) is::
@@ -32,38 +34,93 @@ add ``w_l J^T lambda`` to the equations of motion (paper eq. 25–26 use ``w_l =
 """
 
 import numpy as np
-from numba import njit
 
-#: Kinds of constraint rows (``con_kind``): the x and y components of ``r_P - r_Q``, the
-#: angle ``(theta_P + phi_P) - (theta_Q + phi_Q)`` and the slide row (module docstring).
-ROW_X, ROW_Y, ROW_ANGLE, ROW_SLIDE = 0, 1, 2, 3
+from ._jit import inner, kernel
+from .schema import Kind, design, pattern, register, timed, topology
+
+#: Kinds of constraint rows (``rows.kind``; module docstring).
+ROW_X, ROW_Y, ROW_ANGLE, ROW_GEAR = 0, 1, 2, 3
+#: Per row kind: does the row carry the one-side Hessian of a material point (x, y rows)?
+POINT_HESSIAN = np.array([True, True, False, False])
+#: Per row kind: is the row an angle (radians, not a length)?
+ANGLE_LIKE = np.array([False, False, True, True])
+
+ROWS = register(Kind("rows", [
+    design("u0", (2, 3), "body-frame point of each side and its coefficient (gear ratio)"),
+    topology("kind", (), "ROW_X, ROW_Y, ROW_ANGLE or ROW_GEAR"),
+    topology("con", (), "constraint number (multiplier, equation n_dof + con)"),
+    topology("dofs", (2, 6), "DOFs R_x, R_y, theta, u, v, phi of each side (-1: absent)"),
+    pattern("row", (2, 6), "positions of (constraint row, DOF j of side s)"),
+    pattern("col", (2, 6), "positions of (DOF j of side s, multiplier column)"),
+    pattern("H", (2, 6, 6), "positions of the Hessian entries of each side's point"),
+    timed("c", (), "target value"),
+    timed("cd", (), "its first time derivative"),
+    timed("cdd", (), "its second time derivative"),
+], "a scalar constraint row between two material points",
+   timing="drive", module=__name__))
+Rows = ROWS.arrays
+RowsTimes = ROWS.times
+
+# entries of a side's 6 x 6 Hessian that can be nonzero (theta-theta, theta-w, w-theta)
+HESS_ENTRIES = ((2, 2), (2, 3), (3, 2), (2, 4), (4, 2))
 
 
-@njit(cache=True, inline="always")
-def _dofs(table, i, side):
-    """The six DOFs of side ``side`` of row ``i`` as a tuple (``-1`` where absent)."""
-    return (table[i, side, 0], table[i, side, 1], table[i, side, 2], table[i, side, 3],
-            table[i, side, 4], table[i, side, 5])
+def hessian_coordinates(dofs: np.ndarray, which) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column DOFs of the Hessian entries :data:`HESS_ENTRIES` of points whose six
+    DOFs are ``dofs[..., 6]``, where ``which`` (broadcastable to ``dofs[..., 0]``) is True;
+    ``-1`` elsewhere (shape ``dofs.shape[:-1] + (6, 6)``)."""
+    shape = dofs.shape[:-1] + (6, 6)
+    Hr, Hc = -np.ones(shape, dtype=np.int64), -np.ones(shape, dtype=np.int64)
+    for (j, k) in HESS_ENTRIES:
+        Hr[..., j, k] = np.where(which, dofs[..., j], -1)
+        Hc[..., j, k] = np.where(which, dofs[..., k], -1)
+    return Hr, Hc
 
 
-@njit(cache=True, inline="always")
-def _side(kind, dofs, ux0, uy0, q, v, a):
-    """Value, gradient and second-order terms of one side of a row (sign not applied).
+@ROWS.pattern_of
+def coordinates(S, n_dof: int) -> dict:
+    """(row, column) of every entry of :data:`ROWS`' pattern fields (``-1``: none)."""
+    A = S.rows
+    crow = (n_dof + A.con)[:, None, None]
+    point = POINT_HESSIAN[A.kind][:, None]
+    return {"row": (crow, A.dofs), "col": (A.dofs, crow),
+            "H": hessian_coordinates(A.dofs, point)}
+
+
+@ROWS.reactions_of
+def reaction_directions(A, items, sides, q) -> np.ndarray:
+    """``(n_t, n, 3)``: the force (x, y) and moment a unit multiplier of each row applies to
+    its side ``sides`` (0 or 1), with the sign of side 1 (``morphlab.results.reactions``
+    applies the held side's): x and y rows push along x and y, angle rows turn, a gear row
+    turns side 1 by its ratio."""
+    kind = A.kind[items]
+    out = np.zeros((q.shape[0], kind.shape[0], 3), dtype=np.result_type(q, A.u0))
+    out[:, kind == ROW_X, 0] = 1.0
+    out[:, kind == ROW_Y, 1] = 1.0
+    out[:, kind == ROW_ANGLE, 2] = 1.0
+    for j in np.flatnonzero(kind == ROW_GEAR):
+        out[:, j, 2] = A.u0[items[j], 1, 2] if sides[j] == 1 else 1.0
+    return out
+
+
+@inner
+def side_terms(kind, dofs, ux0, uy0, q, v, a):
+    """Value, gradient and second-order terms of one side of a point or angle row (sign not
+    applied).
 
     ``dofs``: the side's six DOFs (tuple, ``-1`` where absent); ``(ux0, uy0)``: the point in the
     body frame. Returns ``(g, vHv, grad, Hv, Ha, dvHv)``, the last four as 6-tuples on the
     local DOFs: ``grad = dg/dq``, ``Hv = H q'``, ``Ha = H q''`` and ``dvHv = d(q'^T H q')/dq``.
     (Values, not output arrays: scratch arrays passed into a helper add reference counting
-    and keep Numba from optimizing the caller's loop, which dominates the residual's cost.)
+    and keep Numba from optimizing the caller's loop.)
     """
-    # one scalar type for every returned value: that of the state and the point together (a
-    # sensitivity pseudo-load evaluates complex points at a real state)
+    # one scalar type for every returned value: that of the state and the point together
     zero = q[0] * 0.0 + ux0 * 0.0
     one = zero + 1.0
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     vth = v[dofs[2]] if dofs[2] >= 0 else zero
     ath = a[dofs[2]] if dofs[2] >= 0 else zero
-    if kind == ROW_ANGLE:
+    if kind == ROW_ANGLE or kind == ROW_GEAR:
         phi = q[dofs[5]] if dofs[5] >= 0 else zero
         z6 = (zero, zero, zero, zero, zero, zero)
         return th + phi + zero, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
@@ -106,13 +163,11 @@ def _side(kind, dofs, ux0, uy0, q, v, a):
     return g, vHv, grad, Hv, Ha, dvHv
 
 
-@njit(cache=True, inline="always")
-def _side_hessian(kind, dofs, ux0, uy0, q):
-    """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side
-    (symmetric; all zero for angle rows)."""
-    zero = q[0] * 0.0 + ux0 * 0.0  # the scalar type of state and point (see _side)
-    if kind == ROW_ANGLE:
-        return zero, zero, zero
+@inner
+def side_hessian(kind, dofs, ux0, uy0, q):
+    """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side of an
+    x (``kind`` 0) or y (1) row (symmetric)."""
+    zero = q[0] * 0.0 + ux0 * 0.0  # the scalar type of state and point (see side_terms)
     th = q[dofs[2]] if dofs[2] >= 0 else zero
     wx = q[dofs[3]] if dofs[3] >= 0 else zero
     wy = q[dofs[4]] if dofs[4] >= 0 else zero
@@ -125,318 +180,143 @@ def _side_hessian(kind, dofs, ux0, uy0, q):
     return -(s * ux + c * uy), c, -s
 
 
-@njit(cache=True, inline="always")
-def _add_hessian(kind, dofs, ux0, uy0, q, coef, hmap, i, side, data):
-    """Add ``coef H`` of one side to ``data`` at the positions ``hmap[i, side, side, j, k]``."""
-    h22, h23, h24 = _side_hessian(kind, dofs, ux0, uy0, q)
-    for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
-        p = hmap[i, side, side, j, k]
-        if p >= 0:
-            data[p] += coef * h
-
-
-@njit(cache=True, inline="always")
-def _lin(x, p, y, r):
-    """The 6-tuple ``x p + y r`` (``p``, ``r`` 6-tuples)."""
-    return (x * p[0] + y * r[0], x * p[1] + y * r[1], x * p[2] + y * r[2], x * p[3] + y * r[3],
-            x * p[4] + y * r[4], x * p[5] + y * r[5])
-
-
-@njit(cache=True, inline="always")
-def _psi(dofs, w, zero):
-    """``w[theta] + w[phi]`` of a side (zero where absent)."""
-    out = zero
-    if dofs[2] >= 0:
-        out += w[dofs[2]]
-    if dofs[5] >= 0:
-        out += w[dofs[5]]
-    return out
-
-
-@njit(cache=True, inline="always")
-def _dot(grad, dofs, w, zero):
-    out = zero
-    for j in range(6):
-        if dofs[j] >= 0:
-            out += grad[j] * w[dofs[j]]
-    return out
-
-
-@njit(cache=True)
-def _point_of(dofs, ux0, uy0, q, v, a):
-    """:func:`_side` of the x and the y component of one material point, as a called
-    function: the slide row's helpers need both components of both sides, and inlining every
-    call (or calling with the kind as a compile-time constant, which Numba specializes on)
-    multiplied the constraint kernels' compile time."""
-    return (_side(ROW_X, dofs, ux0, uy0, q, v, a), _side(ROW_Y, dofs, ux0, uy0, q, v, a))
-
-
-@njit(cache=True)
-def _add_point_hessian(dofs, ux0, uy0, q, cx, cy, hmap, i, side, data):
-    """Add ``cx H_x + cy H_y`` of one material point (:func:`_add_hessian` of both
-    components) at ``hmap[i, side, side, j, k]``; ``side`` a run-time value (see
-    :func:`_point_of`)."""
-    _add_hessian(ROW_X, dofs, ux0, uy0, q, cx, hmap, i, side, data)
-    _add_hessian(ROW_Y, dofs, ux0, uy0, q, cy, hmap, i, side, data)
-
-
-@njit(cache=True)
-def _slide(dP, dQ, uP, uQ, q, v, a):
-    """A slide row ``g = n(psi) . d``, ``d = r_P - r_Q``, ``psi = theta_Q + phi_Q + beta``:
-    ``(g, vHv, grad, Hv, Ha, dvHv)`` as :func:`_side` gives them, but each of the last four a
-    pair (P side, Q side) of 6-tuples, signs included. ``uP = (x, y, -)``, ``uQ = (x, y, beta)``.
-
-    With ``t = dn/dpsi`` and ``D = dd/dq``: ``grad = n^T D + (t.d) e_psi``;
-    ``H = n.H_d + e_psi (t^T D) + (t^T D)^T e_psi^T - (n.d) e_psi e_psi^T``;
-    ``v^T H v = n.(v^T H_d v) + 2 psi' t.(D v) - psi'^2 n.d``.
-    """
-    zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
-    (gxP, vxP, grxP, HvxP, HaxP, dvxP), (gyP, vyP, gryP, HvyP, HayP, dvyP) = _point_of(
-        dP, uP[0], uP[1], q, v, a)
-    (gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ), (gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ) = _point_of(
-        dQ, uQ[0], uQ[1], q, v, a)
-    psi = _psi(dQ, q, zero) + uQ[2]
-    pv = _psi(dQ, v, zero)
-    pa = _psi(dQ, a, zero)
-    nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
-    tx, ty = -ny, nx
-    dx, dy = gxP - gxQ, gyP - gyQ
-    # D v, D a and v^T H_d v of d (components x, y)
-    dvx = _dot(grxP, dP, v, zero) - _dot(grxQ, dQ, v, zero)
-    dvy = _dot(gryP, dP, v, zero) - _dot(gryQ, dQ, v, zero)
-    dax = _dot(grxP, dP, a, zero) - _dot(grxQ, dQ, a, zero)
-    day = _dot(gryP, dP, a, zero) - _dot(gryQ, dQ, a, zero)
-    hx, hy = vxP - vxQ, vyP - vyQ
-    nd, td = nx * dx + ny * dy, tx * dx + ty * dy
-    g = nd
-    vHv = nx * hx + ny * hy + 2.0 * pv * (tx * dvx + ty * dvy) - pv * pv * nd
-    e = (zero, zero, zero + 1.0, zero, zero, zero + 1.0)  # d psi / dq of the Q side
-    nP, nQ = _lin(nx, grxP, ny, gryP), _lin(nx, grxQ, ny, gryQ)
-    tP, tQ = _lin(tx, grxP, ty, gryP), _lin(tx, grxQ, ty, gryQ)
-    gP = nP
-    gQ = _lin(-1.0, nQ, td, e)
-    HvP = _lin(1.0, _lin(nx, HvxP, ny, HvyP), pv, tP)
-    HaP = _lin(1.0, _lin(nx, HaxP, ny, HayP), pa, tP)
-    HvQ = _lin(-1.0, _lin(nx, HvxQ, ny, HvyQ), -pv, tQ)
-    HvQ = _lin(1.0, HvQ, tx * dvx + ty * dvy - nd * pv, e)
-    HaQ = _lin(-1.0, _lin(nx, HaxQ, ny, HayQ), -pa, tQ)
-    HaQ = _lin(1.0, HaQ, tx * dax + ty * day - nd * pa, e)
-    dvP = _lin(1.0, _lin(nx, dvxP, ny, dvyP), 2.0 * pv, _lin(tx, HvxP, ty, HvyP))
-    dvP = _lin(1.0, dvP, -pv * pv, nP)
-    dvQ = _lin(-1.0, _lin(nx, dvxQ, ny, dvyQ), -2.0 * pv, _lin(tx, HvxQ, ty, HvyQ))
-    dvQ = _lin(1.0, dvQ, pv * pv, nQ)
-    dvQ = _lin(1.0, dvQ, tx * hx + ty * hy - 2.0 * pv * (nx * dvx + ny * dvy) - pv * pv * td, e)
-    return g, vHv, (gP, gQ), (HvP, HvQ), (HaP, HaQ), (dvP, dvQ)
-
-
-@njit(cache=True)
-def _add_slide_hessian(dP, dQ, uP, uQ, q, coef, hmap, i, data):
-    """Add ``coef H`` of a slide row (:func:`_slide`) to ``data`` at ``hmap[i, r, c, j, k]``
-    (``r``, ``c``: the sides of row and column; 0 = P, 1 = Q)."""
-    zero = q[0] * 0.0 + uP[0] * 0.0 + uQ[0] * 0.0
-    psi = _psi(dQ, q, zero) + uQ[2]
-    nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
-    (gxP, _, grxP, _, _, _), (gyP, _, gryP, _, _, _) = _point_of(dP, uP[0], uP[1], q, q, q)
-    (gxQ, _, grxQ, _, _, _), (gyQ, _, gryQ, _, _, _) = _point_of(dQ, uQ[0], uQ[1], q, q, q)
-    nd = nx * (gxP - gxQ) + ny * (gyP - gyQ)
-    for side in range(2):
-        sg = 1.0 if side == 0 else -1.0
-        d, u = (dP, uP) if side == 0 else (dQ, uQ)
-        _add_point_hessian(d, u[0], u[1], q, sg * coef * nx, sg * coef * ny, hmap, i, side,
-                           data)
-    tP = _lin(-ny, grxP, nx, gryP)
-    tQ = _lin(-ny, grxQ, nx, gryQ)
-    for j in (2, 5):
-        for m in range(6):
-            for (r, c, jj, mm, h) in ((0, 1, m, j, tP[m]), (1, 0, j, m, tP[m]),
-                                      (1, 1, j, m, -tQ[m]), (1, 1, m, j, -tQ[m])):
-                p = hmap[i, r, c, jj, mm]
-                if p >= 0:
-                    data[p] += coef * h
-        for k in (2, 5):
-            p = hmap[i, 1, 1, j, k]
-            if p >= 0:
-                data[p] -= coef * nd
-
-
-@njit(cache=True, inline="always")
-def _neg(t):
-    return (-t[0], -t[1], -t[2], -t[3], -t[4], -t[5])
-
-
-@njit(cache=True, inline="always")
-def _point_side(kind, dofs, u, q, v, a):
-    """:func:`_side`, or zeros for the ground (no DOFs; its point sits in ``c``)."""
+@inner
+def point_side(kind, dofs, ux0, uy0, q, v, a):
+    """:func:`side_terms`, or zeros for the ground (no DOFs; its point sits in ``c``)."""
     if dofs[0] < 0 and dofs[2] < 0:
-        zero = q[0] * 0.0 + u[0] * 0.0
+        zero = q[0] * 0.0 + ux0 * 0.0
         z6 = (zero, zero, zero, zero, zero, zero)
         return zero, zero, z6, z6, z6, z6
-    return _side(kind, dofs, u[0], u[1], q, v, a)
+    return side_terms(kind, dofs, ux0, uy0, q, v, a)
 
 
-@njit(cache=True)
-def _row_of(kind, extra, dofs0, dofs1, u0, u1, q, v, a):
-    """``(g, vHv, grad, Hv, Ha, dvHv)`` of one row of any kind, signs applied, the last four as
-    pairs (side 0, side 1) of 6-tuples (:func:`_side`, :func:`_slide`). ``extra``: the
-    switch ``S.extra_items`` (module docstring), an argument of every compiled caller.
-
-    A called function, not inlined, for every kernel that reads rows (residual, Newton matrix,
-    violation diagnostics): Numba types an inlined row anew in each kernel, which was the
-    largest share of a cold start. The residual, which needs only ``g``, ``vHv`` and ``grad``,
-    pays for computing the whole row: about 2 µs of a 28 µs residual of the morphing model,
-    against 6 s less compilation (``BENCHMARKS.md``)."""
-    if extra is not None:
-        if kind == ROW_SLIDE:
-            return _slide(dofs0, dofs1, u0, u1, q, v, a)
-    g0, vHv0, gr0, Hv0, Ha0, dv0 = _point_side(kind, dofs0, u0, q, v, a)
-    g1, vHv1, gr1, Hv1, Ha1, dv1 = _point_side(kind, dofs1, u1, q, v, a)
-    return (g0 - g1, vHv0 - vHv1, (gr0, _neg(gr1)), (Hv0, _neg(Hv1)), (Ha0, _neg(Ha1)),
-            (dv0, _neg(dv1)))
+@inner
+def _scaled(x, t):
+    return (x * t[0], x * t[1], x * t[2], x * t[3], x * t[4], x * t[5])
 
 
-@njit(cache=True, inline="always")
-def _u(con_u0, i, side):
-    return (con_u0[i, side, 0], con_u0[i, side, 1], con_u0[i, side, 2])
+@inner
+def _row(A, i, q, v, a):
+    """``(g, vHv, grad, Hv, Ha, dvHv)`` of row ``i``, signs applied, the last four as pairs
+    (side 0, side 1) of 6-tuples (:func:`side_terms`); side 1 scaled by minus its coefficient for
+    a gear row, by minus one otherwise."""
+    kind = A.kind[i]
+    d0 = (A.dofs[i, 0, 0], A.dofs[i, 0, 1], A.dofs[i, 0, 2], A.dofs[i, 0, 3], A.dofs[i, 0, 4],
+          A.dofs[i, 0, 5])
+    d1 = (A.dofs[i, 1, 0], A.dofs[i, 1, 1], A.dofs[i, 1, 2], A.dofs[i, 1, 3], A.dofs[i, 1, 4],
+          A.dofs[i, 1, 5])
+    g0, vHv0, gr0, Hv0, Ha0, dv0 = point_side(kind, d0, A.u0[i, 0, 0], A.u0[i, 0, 1], q, v, a)
+    g1, vHv1, gr1, Hv1, Ha1, dv1 = point_side(kind, d1, A.u0[i, 1, 0], A.u0[i, 1, 1], q, v, a)
+    r = -1.0 + 0.0 * A.u0[i, 1, 2]
+    if kind == ROW_GEAR:
+        r = -A.u0[i, 1, 2]
+    return (g0 + r * g1, vHv0 + r * vHv1, (gr0, _scaled(r, gr1)), (Hv0, _scaled(r, Hv1)),
+            (Ha0, _scaled(r, Ha1)), (dv0, _scaled(r, dv1)))
 
 
-@njit(cache=True)
-def constraint_residual(extra, S, q, v, a, lam, wl, wcm, wcf, scale, b0, b1, c, cd, cdd, rows,
-                        n_dof, R):
+@inner
+def residual(A, x, w, T, t, k, rows, n_dof, R):
     """Add ``wl J^T lam`` to the equation rows and ``scale (wcm J a - wcf F_c)`` to the
-    constraint rows ``R[n_dof + i]``.
+    constraint rows ``R[n_dof + con]`` of the rows ``rows`` (int64 indices).
 
-    Parameters
-    ----------
-    extra : True or None
-        ``S.extra_items`` (module docstring).
-    lam : (n_con,)
-        Physical Lagrange multipliers.
-    c, cd, cdd : (n_con,)
-        Target value of each row and its first and second time derivatives at this time.
-    S : SystemArrays
-        The rows are described by ``S.con_kind``, ``S.con_dofs``, ``S.con_u0`` (module
-        docstring).
-    rows : int64 array
-        The rows evaluated (all of them, or those a design variable changes; see
-        ``ffrf.body_residual``).
+    ``A``: the arrays of :data:`ROWS`; ``x``: a :class:`~morphlab.kernels.types.Level`;
+    ``w``: its :class:`~morphlab.kernels.types.Weights`; ``T``: the rows' time values
+    (``T.c[t, k, i]``: table ``t`` at time index ``k``).
     """
-    con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
+    if A is None:  # the model has none of this kind
+        return
+    q, v, a, lam = x.q, x.v, x.a, x.lam
     zero = R[0] * 0.0
     for i in rows:
-        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, vHv, grad, _, _, _ = _row_of(con_kind[i], extra, dofs[0], dofs[1], _u(con_u0, i, 0),
-                                        _u(con_u0, i, 1), q, v, a)
+        g, vHv, grad, _, _, _ = _row(A, i, q, v, a)
+        con = A.con[i]
         Ja = zero
         Jv = zero
         for side in range(2):
             for j in range(6):
-                d = dofs[side][j]
+                d = A.dofs[i, side, j]
                 if d >= 0:
                     Ja += grad[side][j] * a[d]
                     Jv += grad[side][j] * v[d]
-                    R[d] += wl * grad[side][j] * lam[i]
-        Fc = -vHv + cdd[i] - b1 * (Jv - cd[i]) - b0 * (g - c[i])
-        R[n_dof + i] += scale * (wcm * Ja - wcf * Fc)
+                    R[d] += w.wl * grad[side][j] * lam[con]
+        Fc = (-vHv + T.cdd[t, k, i] - w.b1 * (Jv - T.cd[t, k, i])
+              - w.b0 * (g - T.c[t, k, i]))
+        R[n_dof + con] += w.scale * (w.wcm * Ja - w.wcf * Fc)
 
 
-@njit(cache=True)
-def constraint_jacobian(extra, S, q, v, a, lam, cl, ccm, ccf, C, scale, b0, b1, out):
-    """Add the constraint terms of ``d(residual)/d(a, lambda_scaled)`` to the CSC data arrays
-    ``out`` (m, nnz) (``extra``: ``S.extra_items``, module docstring): the terms are
-    ``D0 + bh2 Dq + gh Dv``, output ``r`` receives ``C[r][0] D0 + C[r][1] Dq + C[r][2] Dv``
-    (``C``: m triples; ``kernels.ffrf.body_jacobian``).
-
-    ``S.con_map_row[i, side, j]``: position of (constraint row i, DOF j);
-    ``S.con_map_col[i, side, j]``: position of (DOF j, multiplier column i);
-    ``S.con_map_H[i, r, c, j, k]``: position of (DOF j of side r, DOF k of side c) (only
-    ``r == c`` for the rows of one side's points). ``-1`` marks an absent entry.
-    """
-    con_kind, con_dofs, con_u0 = S.con_kind, S.con_dofs, S.con_u0
-    map_row, map_col, map_H = S.con_map_row, S.con_map_col, S.con_map_H
-    for i in range(con_kind.shape[0]):
-        kind = con_kind[i]
-        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        u = (_u(con_u0, i, 0), _u(con_u0, i, 1))
-        _, _, grad, Hv, Ha, dvHv = _row_of(kind, extra, dofs[0], dofs[1], u[0], u[1], q, v, a)
+@inner
+def matrix(A, x, w, C, out):
+    """Add the terms of the rows to the step matrix's CSC data arrays ``out`` (m, nnz), output
+    ``r`` receiving ``C[r, 0] D0 + C[r, 1] Dq + C[r, 2] Dv`` (:mod:`morphlab.kernels.types`;
+    positions ``A.row``, ``A.col``, ``A.H``, ``-1`` absent)."""
+    if A is None:  # the model has none of this kind
+        return
+    q, v, a, lam = x.q, x.v, x.a, x.lam
+    scale, ccm, ccf, cl = w.scale, w.wcm, w.wcf, w.wl
+    for i in range(A.kind.shape[0]):
+        _, _, grad, Hv, Ha, dvHv = _row(A, i, q, v, a)
         for side in range(2):
             for j in range(6):
-                if dofs[side][j] < 0:
+                if A.dofs[i, side, j] < 0:
                     continue
                 gr = grad[side][j]
                 # constraint row: d/da of wcm J a - wcf F_c
-                dFc_dq = -dvHv[side][j] - b1 * Hv[side][j] - b0 * gr
-                dFc_dv = -2.0 * Hv[side][j] - b1 * gr
+                dFc_dq = -dvHv[side][j] - w.b1 * Hv[side][j] - w.b0 * gr
+                dFc_dv = -2.0 * Hv[side][j] - w.b1 * gr
                 x0 = scale * ccm * gr
                 xq = scale * (ccm * Ha[side][j] - ccf * dFc_dq)
                 xv = -scale * ccf * dFc_dv
-                p = map_row[i, side, j]
+                p = A.row[i, side, j]
                 if p >= 0:
-                    for r in range(len(C)):
-                        out[r, p] += C[r][0] * x0 + C[r][1] * xq + C[r][2] * xv
-                p = map_col[i, side, j]
+                    for r in range(C.shape[0]):
+                        out[r, p] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
+                p = A.col[i, side, j]
                 if p >= 0:
-                    for r in range(len(C)):
-                        out[r, p] += C[r][0] * cl * scale * gr
+                    for r in range(C.shape[0]):
+                        out[r, p] += C[r, 0] * cl * scale * gr
+        kind = A.kind[i]
+        if kind != ROW_X and kind != ROW_Y:
+            continue
         # the Hessian terms bh2 cl lam H belong to Dq alone
-        for r in range(len(C)):
-            coef = cl * C[r][1] * lam[i]
-            if C[r][1] == 0.0:
+        lam_i = lam[A.con[i]]
+        for side in range(2):
+            if A.dofs[i, side, 0] < 0 and A.dofs[i, side, 2] < 0:
                 continue
-            if extra is not None:
-                if kind == ROW_SLIDE:
-                    _add_slide_hessian(dofs[0], dofs[1], u[0], u[1], q, coef, map_H, i, out[r])
+            d = (A.dofs[i, side, 0], A.dofs[i, side, 1], A.dofs[i, side, 2],
+                 A.dofs[i, side, 3], A.dofs[i, side, 4], A.dofs[i, side, 5])
+            h22, h23, h24 = side_hessian(kind, d, A.u0[i, side, 0], A.u0[i, side, 1], q)
+            sg = 1.0 if side == 0 else -1.0
+            for r in range(C.shape[0]):
+                if C[r, 1] == 0.0:
                     continue
-            if kind != ROW_ANGLE:
-                for side in range(2):
-                    if dofs[side][0] >= 0 or dofs[side][2] >= 0:
-                        sg = 1.0 if side == 0 else -1.0
-                        _add_hessian(kind, dofs[side], u[side][0], u[side][1], q, sg * coef,
-                                     map_H, i, side, out[r])
+                coef = sg * cl * C[r, 1] * lam_i
+                add_hessian(A.H[i, side], h22, h23, h24, coef, out[r])
 
 
-@njit(cache=True)
-def constraint_values(extra, q, v, c, cd, con_kind, con_dofs, con_u0, phi, phid):
-    """Position- and velocity-level violation of every row: ``phi = g - c``,
-    ``phid = J q' - c'`` (each (n_con,), out; ``extra``: ``S.extra_items``, which must be True if
-    ``con_kind`` has slide rows)."""
+@inner
+def add_hessian(hmap, h22, h23, h24, coef, data):
+    """Add ``coef H`` of one side to ``data`` at the positions ``hmap[j, k]`` (6, 6)."""
+    for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
+        p = hmap[j, k]
+        if p >= 0:
+            data[p] += coef * h
+
+
+@kernel
+def values(A, q, v, T, k, phi, phid):
+    """Position- and velocity-level violation of every row: ``phi[con] = g - c``,
+    ``phid[con] = J q' - c'`` with the targets of the time values ``T`` at time index ``k``
+    (table 0)."""
+    if A is None:  # the model has none of this kind
+        return
     zero = q[0] * 0.0
-    for i in range(con_kind.shape[0]):
-        dofs = (_dofs(con_dofs, i, 0), _dofs(con_dofs, i, 1))
-        g, _, grad, _, _, _ = _row_of(con_kind[i], extra, dofs[0], dofs[1], _u(con_u0, i, 0),
-                                      _u(con_u0, i, 1), q, v, v)
+    for i in range(A.kind.shape[0]):
+        g, _, grad, _, _, _ = _row(A, i, q, v, v)
         Jv = zero
         for side in range(2):
             for j in range(6):
-                if dofs[side][j] >= 0:
-                    Jv += grad[side][j] * v[dofs[side][j]]
-        phi[i] = g - c[i]
-        phid[i] = Jv - cd[i]
-
-
-@njit(cache=True)
-def constraint_violation_history(extra, Q, V, C, CD, con_kind, con_dofs, con_u0, viol, vviol):
-    """``max |Phi|`` and ``max |Phi'|`` at every stored time in one call (``extra``: as for
-    :func:`constraint_values`).
-
-    ``Q, V`` (n_t, n_dof); ``C, CD`` (n_t, n_con) constraint targets; ``viol, vviol`` (n_t,),
-    out (magnitudes of the real parts: a diagnostic, not differentiated)."""
-    n_con = con_kind.shape[0]
-    phi = np.zeros(n_con, dtype=Q.dtype)
-    phid = np.zeros(n_con, dtype=Q.dtype)
-    for k in range(Q.shape[0]):
-        constraint_values(extra, Q[k], V[k], C[k], CD[k], con_kind, con_dofs, con_u0, phi, phid)
-        m0 = 0.0
-        m1 = 0.0
-        for i in range(n_con):
-            a = phi[i].real
-            b = phid[i].real
-            if a < 0:
-                a = -a
-            if b < 0:
-                b = -b
-            if a > m0:
-                m0 = a
-            if b > m1:
-                m1 = b
-        viol[k] = m0
-        vviol[k] = m1
+                d = A.dofs[i, side, j]
+                if d >= 0:
+                    Jv += grad[side][j] * v[d]
+        phi[A.con[i]] = g - T.c[0, k, i]
+        phid[A.con[i]] = Jv - T.cd[0, k, i]

@@ -1,121 +1,179 @@
-"""External loads: point forces, line loads on beam elements and torques, with the exact
-derivatives of the forces.
+"""External loads: point forces, torques and line loads on beam elements, with the exact
+derivatives of the forces. Three optional kinds: :data:`LOADS`, :data:`TORQUES`,
+:data:`LINES`.
 
 A point force of fixed global direction at a material point ``P`` adds ``-wf L_P^T F`` to the
 equation rows (``docs/theory.md`` §4.5); its dependence on the body angle and the nodal
 displacement gives the load terms of the Newton matrix. The point's position, gradient and
-second derivatives are those of a constraint side (:func:`morphlab.kernels.joints._side`).
+second derivatives are those of a constraint side (:func:`morphlab.kernels.joints.side_terms`).
 
-A line load ``q`` (force per undeformed length, global direction) is a load of the same table:
-its row of ``F`` holds ``q`` at this time, it has no point (``load_dofs`` all ``-1``) and acts
-on the element entries ``line_off[i] .. line_off[i + 1]``. On an element of a frame
-``(R, theta)`` with flexible coordinates ``d`` its work-equivalent generalized forces are
-(``docs/theory.md`` §4.6)::
+A torque acts on a body angle and, at a beam node, on the nodal rotation.
+
+A line load ``q`` (force per undeformed length, global direction) on a beam is one entry of
+:data:`LINES` per loaded element. On an element of a frame ``(R, theta)`` with flexible
+coordinates ``d`` its work-equivalent generalized forces are (``docs/theory.md`` §4.6)::
 
     Q_R = L q,    Q_theta = q . A Ĩ (U + N d),    Q_d = N^T A^T q
 
-with ``L = int ds``, ``U = int u0 ds`` (``S.line_u0[e] = (L, U_x, U_y)``) and
-``N = int S_e ds`` (``S.line_N[e]``, 2 x 6), integrals over the undeformed element.
+with ``L = int ds``, ``U = int u0 ds`` (``lines.u0[e] = (L, U_x, U_y)``) and
+``N = int S_e ds`` (``lines.N[e]``, 2 x 6), integrals over the undeformed element.
+
+Every load is linear in its magnitude (the time values ``F``, ``T``, ``q``), and a line load
+also in its integrals: the pseudo-loads of such design variables are these kernels evaluated
+with the derivatives in their place.
 """
 
 import numpy as np
-from numba import njit
 
-from .joints import _side, _side_hessian
+from ._jit import inner
+from .joints import hessian_coordinates, side_hessian, side_terms
+from .schema import Kind, design, pattern, register, timed, topology
+
+LOADS = register(Kind("loads", [
+    design("u0", (2,), "body-frame point of application"),
+    topology("dofs", (6,), "DOFs R_x, R_y, theta, u, v, phi of the point"),
+    pattern("map", (6, 6), "positions of the point's Hessian entries"),
+    timed("F", (2,), "the force (global components) [force]", linear=True),
+], "a point force of fixed global direction",
+   optional=True, timing="scale", work=True, module=__name__))
+Loads = LOADS.arrays
+LoadsTimes = LOADS.times
+
+TORQUES = register(Kind("torques", [
+    topology("dofs", (2,), "DOF of the body angle and of a nodal rotation (-1: none)"),
+    timed("T", (), "the torque [force length]", linear=True),
+], "a torque on a body (and a beam node)",
+   optional=True, timing="scale", work=True, module=__name__))
+Torques = TORQUES.arrays
+TorquesTimes = TORQUES.times
+
+LINES = register(Kind("lines", [
+    design("u0", (3,), "int ds, int u0 ds of the element (undeformed, in its frame)"),
+    design("N", (2, 6), "int S_e ds"),
+    topology("ref", (3,), "DOFs R_x, R_y, theta of the element's frame"),
+    topology("dofs", (6,), "global DOF of each element DOF (-1: removed)"),
+    pattern("map", (7, 7), "positions over (theta, d_0 .. d_5)"),
+    timed("q", (2,), "the load per length (global components) [force/length]"),
+], "a loaded element of a line load",
+   optional=True, timing="scale", work=True, module=__name__))
+Lines = LINES.arrays
+LinesTimes = LINES.times
 
 
-@njit(cache=True, inline="always")
-def torque_residual(S, wf, T, torques, R):
-    """Subtract ``wf T`` of the torques ``torques`` (int64 indices) from the equation rows of
-    ``R``: each acts on the body angle and on the nodal rotation (``S.torque_dofs``, ``-1``
-    if absent); ``T`` (n_torque,) the values at this time [force·length]."""
-    for i in torques:
+@LOADS.pattern_of
+def load_coordinates(S, n_dof: int) -> dict:
+    """(row, column) of the point loads' Hessian entries."""
+    return {"map": hessian_coordinates(S.loads.dofs, True)}
+
+
+@LINES.pattern_of
+def line_coordinates(S, n_dof: int) -> dict:
+    """(row, column) of the line-load entries: theta with itself and with every element
+    coordinate, both ways."""
+    A = S.lines
+    local = np.concatenate([A.ref[:, 2:3], A.dofs], axis=1)
+    n = local.shape[0]
+    rows = np.broadcast_to(local[:, :, None], (n, 7, 7))
+    cols = np.broadcast_to(local[:, None, :], (n, 7, 7))
+    border = np.zeros((7, 7), dtype=bool)
+    border[0, :] = border[:, 0] = True
+    ok = border[None] & (rows >= 0) & (cols >= 0)
+    return {"map": (np.where(ok, rows, -1), np.where(ok, cols, -1))}
+
+
+@inner
+def torque_residual(A, wf, T, t, k, items, R):
+    """Subtract ``wf T`` of the torques ``items`` from the equation rows of ``R``."""
+    if A is None:  # the model has none of this kind
+        return
+    for i in items:
         for j in range(2):
-            d = S.torque_dofs[i, j]
+            d = A.dofs[i, j]
             if d >= 0:
-                R[d] -= wf * T[i]
+                R[d] -= wf * T.T[t, k, i]
 
 
-@njit(cache=True, inline="always")
-def point_load_residual(S, q, wf, F, loads, R):
-    """Subtract ``wf Q_ext`` of the point forces among ``loads`` (int64 indices; line loads are
-    skipped) from the equation rows of ``R``. ``S.load_dofs``, ``S.load_u0``: the point of
-    application of each load (described as a constraint side); ``F`` (n_load, 2): the global
-    force of each point load [force], or line load [force/length], at this time."""
-    load_dofs, load_u0 = S.load_dofs, S.load_u0
-    for i in loads:
-        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
-                load_dofs[i, 4], load_dofs[i, 5])
-        if dofs[0] < 0 and dofs[2] < 0:
-            continue  # a line load: no point
-        for k in range(2):
-            _, _, grad, _, _, _ = _side(k, dofs, load_u0[i, 0], load_u0[i, 1], q, q, q)
+@inner
+def load_residual(A, q, wf, T, t, k, items, R):
+    """Subtract ``wf Q_ext`` of the point forces ``items`` from the equation rows of ``R``."""
+    if A is None:  # the model has none of this kind
+        return
+    for i in items:
+        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
+                A.dofs[i, 5])
+        for c in range(2):
+            _, _, grad, _, _, _ = side_terms(c, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
             for j in range(6):
                 if dofs[j] >= 0:
-                    R[dofs[j]] -= wf * grad[j] * F[i, k]
+                    R[dofs[j]] -= wf * grad[j] * T.F[t, k, i, c]
 
 
-@njit(cache=True, inline="always")
-def point_load_jacobian(S, q, cf, bh2, F, data):
-    """Add ``-cf bh2 d(Q_ext)/dq`` of the point forces to ``data`` (positions ``S.load_map``
-    (n_load, 6, 6))."""
-    load_dofs, load_u0, load_map = S.load_dofs, S.load_u0, S.load_map
-    for i in range(load_dofs.shape[0]):
-        dofs = (load_dofs[i, 0], load_dofs[i, 1], load_dofs[i, 2], load_dofs[i, 3],
-                load_dofs[i, 4], load_dofs[i, 5])
-        if dofs[0] < 0 and dofs[2] < 0:
+@inner
+def load_matrix(A, q, cf, T, t, k, C, out):
+    """Add ``-cf d(Q_ext)/dq`` of the point forces to the ``Dq`` part of ``out`` (m, nnz)."""
+    if A is None:  # the model has none of this kind
+        return
+    for i in range(A.dofs.shape[0]):
+        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
+                A.dofs[i, 5])
+        for c in range(2):
+            h22, h23, h24 = side_hessian(c, dofs, A.u0[i, 0], A.u0[i, 1], q)
+            for r in range(C.shape[0]):
+                cq = C[r, 1]
+                if cq == 0.0:
+                    continue
+                for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24),
+                                  (4, 2, h24)):
+                    p = A.map[i, j, m]
+                    if p >= 0:
+                        out[r, p] -= cf * cq * T.F[t, k, i, c] * h
+
+
+@inner
+def line_residual(A, q, wf, T, t, k, items, R):
+    """Subtract ``wf Q_ext`` of the line-load entries ``items`` from the equation rows of
+    ``R`` (module docstring)."""
+    if A is None:  # the model has none of this kind
+        return
+    for e in items:
+        qx, qy = wf * T.q[t, k, e, 0], wf * T.q[t, k, e, 1]
+        ref = A.ref[e]
+        c, s = np.cos(q[ref[2]]), np.sin(q[ref[2]])
+        ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q; (AĨ)^T q = (ay, -ax)
+        mom = ay * A.u0[e, 1] - ax * A.u0[e, 2]
+        for j in range(6):
+            d = A.dofs[e, j]
+            if d >= 0:
+                mom += (ay * A.N[e, 0, j] - ax * A.N[e, 1, j]) * q[d]
+                R[d] -= ax * A.N[e, 0, j] + ay * A.N[e, 1, j]
+        R[ref[0]] -= A.u0[e, 0] * qx
+        R[ref[1]] -= A.u0[e, 0] * qy
+        R[ref[2]] -= mom
+
+
+@inner
+def line_matrix(A, q, cf, T, t, k, C, out):
+    """Add ``-cf d(Q_ext)/dq`` of the line loads to the ``Dq`` part of ``out`` (m, nnz)."""
+    if A is None:  # the model has none of this kind
+        return
+    for r in range(C.shape[0]):
+        cq = C[r, 1]
+        if cq == 0.0:
             continue
-        for k in range(2):
-            h22, h23, h24 = _side_hessian(k, dofs, load_u0[i, 0], load_u0[i, 1], q)
-            for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
-                p = load_map[i, j, m]
-                if p >= 0:
-                    data[p] -= cf * bh2 * F[i, k] * h
-
-
-@njit(cache=True, inline="always")
-def line_load_residual(S, q, wf, F, loads, R):
-    """Subtract ``wf Q_ext`` of the line loads among ``loads`` (int64 indices; point loads have
-    no line entries) from the equation rows of ``R`` (module docstring)."""
-    for i in loads:
-        qx, qy = wf * F[i, 0], wf * F[i, 1]
-        for e in range(S.line_off[i], S.line_off[i + 1]):
-            # Q_R = L q, Q_theta = (AĨ)^T q . (U + N d), Q_d = N^T A^T q (module docstring)
-            el = S.line_elem[e]
-            ref = S.body_ref[S.elem_body[el]]
-            c, s = np.cos(q[ref[2]]), np.sin(q[ref[2]])
-            ax, ay = c * qx + s * qy, c * qy - s * qx  # A^T q; (AĨ)^T q = (ay, -ax)
-            mom = ay * S.line_u0[e, 1] - ax * S.line_u0[e, 2]
-            for j in range(6):
-                f = S.elem_fdof[el, j]
-                if f >= 0:
-                    d = S.flex_dof[f]
-                    mom += (ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]) * q[d]
-                    R[d] -= ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]
-            R[ref[0]] -= S.line_u0[e, 0] * qx
-            R[ref[1]] -= S.line_u0[e, 0] * qy
-            R[ref[2]] -= mom
-
-
-@njit(cache=True, inline="always")
-def line_load_jacobian(S, q, cf, bh2, F, data):
-    """Add ``-cf bh2 d(Q_ext)/dq`` of the line loads to ``data`` (positions ``S.line_map``
-    (n_line, 7, 7))."""
-    for i in range(S.line_off.shape[0] - 1):
-        qx, qy = cf * bh2 * F[i, 0], cf * bh2 * F[i, 1]
-        for e in range(S.line_off[i], S.line_off[i + 1]):
+        data = out[r]
+        for e in range(A.ref.shape[0]):
+            qx, qy = cf * cq * T.q[t, k, e, 0], cf * cq * T.q[t, k, e, 1]
             # dQ_theta/dtheta = -A^T q . (U + N d); dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q
-            el = S.line_elem[e]
-            m = S.line_map[e]
-            th = q[S.body_ref[S.elem_body[el], 2]]
+            m = A.map[e]
+            th = q[A.ref[e, 2]]
             c, s = np.cos(th), np.sin(th)
             ax, ay = c * qx + s * qy, c * qy - s * qx
-            mom = ax * S.line_u0[e, 1] + ay * S.line_u0[e, 2]
+            mom = ax * A.u0[e, 1] + ay * A.u0[e, 2]
             for j in range(6):
-                f = S.elem_fdof[el, j]
-                if f >= 0:
-                    mom += (ax * S.line_N[e, 0, j] + ay * S.line_N[e, 1, j]) * q[S.flex_dof[f]]
-                    h = ay * S.line_N[e, 0, j] - ax * S.line_N[e, 1, j]
+                d = A.dofs[e, j]
+                if d >= 0:
+                    mom += (ax * A.N[e, 0, j] + ay * A.N[e, 1, j]) * q[d]
+                    h = ay * A.N[e, 0, j] - ax * A.N[e, 1, j]
                     if m[0, 1 + j] >= 0:
                         data[m[0, 1 + j]] -= h
                     if m[1 + j, 0] >= 0:

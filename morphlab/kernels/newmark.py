@@ -13,10 +13,10 @@ its sensitivities. The step coefficients travel as two small arrays,
 into the arrays passed last.
 """
 
-from numba import njit
+from ._jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def predict(pc, q, v, a, g, qh, vh):
     """The predictors ``q_hat``, ``v_hat`` into ``qh``, ``vh``."""
     h, cqa, cqg, cva, cvg = pc[0], pc[1], pc[2], pc[3], pc[4]
@@ -25,7 +25,7 @@ def predict(pc, q, v, a, g, qh, vh):
         vh[r] = v[r] + cva * a[r] + cvg * g[r]
 
 
-@njit(cache=True)
+@kernel
 def update(pc, upd, qh, vh, a1, a, g, q1, v1, g1):
     """``q_{n+1}``, ``v_{n+1}``, ``g_{n+1}`` into ``q1``, ``v1``, ``g1`` from the predictors,
     the new acceleration ``a1`` and the old ``a``, ``g`` (``g1`` may be ``g``, and ``q1``, ``v1``

@@ -25,10 +25,11 @@ column ``j`` in increasing row order, which is a valid order for a lower-triangu
 """
 
 import numpy as np
-from numba import njit
+
+from ._jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def symbolic(n, indices, indptr, perm_r):
     """Patterns of the factors of ``C = P_r B`` for the CSC pattern ``(indices, indptr)`` of
     ``B`` (n, n) and the row order ``perm_r`` (n,). Returns ``(Lp, Li, Up, Ui)``: column
@@ -94,7 +95,7 @@ def symbolic(n, indices, indptr, perm_r):
     return Lp, Li[:nl].copy(), Up, Ui[:nu].copy()
 
 
-@njit(cache=True)
+@kernel
 def refactor(data, gather, scale, indices, indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux, Ud, work,
              tau):
     """Numeric LU of ``C = P_r B`` into ``Lx``, ``Ux`` (the sizes of ``Li``, ``Ui``) and ``Ud``
@@ -137,7 +138,7 @@ def refactor(data, gather, scale, indices, indptr, perm_r, Lp, Li, Up, Ui, Lx, U
     return -1
 
 
-@njit(cache=True)
+@kernel
 def solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b, x, work):
     """Solve with the factors of :func:`refactor` for ``b`` (n, m) into ``x`` (n, m), through
     the scratch ``work`` (n, m): ``work[k] = row_scale[k] b[row_from[k]]``, ``L U y = work``,
@@ -168,7 +169,7 @@ def solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b,
             x[col_to[k], s] = work[k, s] * col_scale[k]
 
 
-@njit(cache=True)
+@kernel
 def solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b, x,
                      work):
     """Solve the transposed system ``A^T x = b`` with the factors of :func:`refactor`, ``b``

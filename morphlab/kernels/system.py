@@ -1,210 +1,108 @@
-"""The arrays every whole-system kernel reads, as named tuples.
+"""The containers every whole-system kernel reads, generated from the kinds of items.
 
-A compiled model reaches the kernels as one :class:`SystemArrays` (built by
-``morphlab.compile.kernel_arrays``), read by field name: ``S.elem_M``, ``S.con_dofs``. Its
-fields come in three groups:
+A compiled model reaches the kernels as one :data:`SystemArrays`: the gravitational
+acceleration ``gravity`` (2,) and one table per kind of item (:mod:`morphlab.kernels.schema`),
+in the order of :data:`KIND_NAMES`, each the kind's named tuple of arrays, or ``None`` for an
+optional kind the model does not have (its kernels are then not compiled). A run's time values
+travel as :data:`Times` (one named tuple per kind with time fields, each array with two
+leading axes: the table, then the time index; ``None`` for an absent kind), and what a
+residual evaluation covers as :class:`Parts` (item indices per kind in one packed array, and
+for the flexible coordinates a bool mask).
 
-* the **design data** (float64, or complex128 for a complex-step perturbation): everything a
-  design variable can change — gravity, body invariants and damping, flexible invariants,
-  element matrices, the body-frame points of joints and loads. :data:`DESIGN_FIELDS` lists
-  them once; a sensitivity run keeps, per design variable, only the rows of them its design
-  changes (:class:`DesignRows`), and evaluates the residual of design ``i`` on a working copy of
-  the nominal data with those rows written in and out again (:func:`set_design`);
-* the **topology** (int64): DOF numbers of bodies, flexible coordinates, elements, constraint
-  rows and loads;
-* the **pattern** (int64): where each contribution goes in the CSC data of the step matrix
-  (``-1``: skipped);
-* one **switch**, ``extra_items``: ``True`` when the model has items beyond bodies, the
-  point joints (revolute, weld, fix, driving constraints) and torques — prismatic joints, point
-  forces, spring-dampers or line loads — and ``None`` otherwise. Numba compiles a kernel for
-  the types of its arguments and drops a branch ``if extra is not None`` of an argument typed
-  ``None``. The kernels take the switch as an argument
-  (``kernels.joints.constraint_residual(S.extra_items, S, ...)``,
-  ``kernels.assemble.applied_residual``), so the code of those items is compiled only for
-  models that have some: a shorter first run for the others, such as the morphing leading
-  edge. One switch, not one per kind: each combination of switches is a separate compilation
-  of every kernel.
-
-Array shapes (``morphlab.compile`` fills them; ``docs/theory.md`` §2-§4 the formulation):
-
-========== ==================== =============================================================
-field      shape                meaning
-========== ==================== =============================================================
-gravity    (2,)                 gravitational acceleration
-body_scal  (n_body, 4)          ``m, I_u_x, I_u_y, I_00`` of each body
-body_damp  (n_body,)            stiffness-proportional damping ``beta_d`` of each body
-flex_IS    (n_flex, 2)          ``I_S`` of each flexible coordinate
-flex_I0S   (n_flex,)            ``I_0S``
-flex_I0IS  (n_flex,)            ``I_0ĨS``
-elem_M     (n_elem, 6, 6)       element ``M_ff``
-elem_St    (n_elem, 6, 6)       element ``S̃``
-elem_K     (n_elem, 6, 6)       element stiffness
-con_u0     (n_con, 2, 3)        body-frame point of each side of a row, and an angle (slide)
-load_u0    (n_load, 2)          body-frame point of each point load (zeros: a line load)
-spring_u0  (n_spring, 2, 2)     body-frame point of each side of a spring (ground: global)
-spring_par (n_spring, 4)        ``k, c, s0, f0`` of each spring-damper (``kernels.forces``)
-line_u0    (n_line, 3)          ``int ds, int u0 ds`` of each loaded element of a line load
-line_N     (n_line, 2, 6)       ``int S_e ds`` of each loaded element (``kernels.loads``)
-body_ref   (n_body, 3)          DOFs ``R_x, R_y, theta`` of each body
-flex_off   (n_body + 1,)        each body's range of flexible coordinates
-flex_dof   (n_flex,)            DOF of each flexible coordinate
-elem_body  (n_elem,)            body of each element
-elem_fdof  (n_elem, 6)          flexible coordinate of each element DOF (``-1``: removed)
-con_kind   (n_con,)             row kind (:data:`morphlab.kernels.joints.ROW_X`, ...)
-con_dofs   (n_con, 2, 6)        DOFs ``R_x, R_y, theta, u, v, phi`` of each side of a row
-load_dofs  (n_load, 6)          the same for the point of each point load (``-1``: a line load)
-torque_dofs (n_torque, 2)       DOF of the body angle and of a nodal rotation (``-1``)
-spring_kind (n_spring,)         :data:`morphlab.kernels.forces.SPRING_LENGTH` or ``_ANGLE``
-spring_dofs (n_spring, 2, 6)    DOFs of each side of a spring, as ``con_dofs``
-line_off   (n_load + 1,)        each load's range of line entries (empty: a point load)
-line_elem  (n_line,)            element of each line entry
-border_*   ...                  positions of the body border entries (``ffrf.body_jacobian``)
-elem_map   (n_elem, 6, 6)       positions of the element entries
-con_map_*  ...                  positions of the constraint row, column and Hessian entries
-load_map   (n_load, 6, 6)       positions of the point-load Hessian entries
-spring_map (n_spring, 2,2,6,6)  positions of the spring entries (row side, column side)
-line_map   (n_line, 7, 7)       positions of the line-load entries (theta, then ``d``)
-extra_items  True or None       whether the model has slide rows, point forces, spring-dampers
-                                or line loads
-========== ==================== =============================================================
+The design data of a system are views into one flat array (``morphlab.compile`` lays them
+out): a design variable's change is a set of positions in it, written and restored by
+:func:`set_positions` whatever the kinds.
 """
 
+from collections import namedtuple
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from . import ffrf, forces, joints, loads, slides  # noqa: F401 - they register
+from ._jit import inner
+from .schema import KINDS, TIME
 
-class SystemArrays(NamedTuple):
-    """Everything a whole-system kernel reads (module docstring)."""
+#: The kinds, in the order of :data:`SystemArrays` (after ``gravity``).
+KIND_NAMES = tuple(KINDS)
+#: The kinds with time values, in the order of :data:`Times`.
+TIMED_NAMES = tuple(k for k, kind in KINDS.items() if kind.times is not None)
 
-    # design data
-    gravity: np.ndarray
-    body_scal: np.ndarray
-    body_damp: np.ndarray
-    flex_IS: np.ndarray
-    flex_I0S: np.ndarray
-    flex_I0IS: np.ndarray
-    elem_M: np.ndarray
-    elem_St: np.ndarray
-    elem_K: np.ndarray
-    con_u0: np.ndarray
-    load_u0: np.ndarray
-    spring_u0: np.ndarray
-    spring_par: np.ndarray
-    line_u0: np.ndarray
-    line_N: np.ndarray
-    # topology
-    body_ref: np.ndarray
-    flex_off: np.ndarray
-    flex_dof: np.ndarray
-    elem_body: np.ndarray
-    elem_fdof: np.ndarray
-    con_kind: np.ndarray
-    con_dofs: np.ndarray
-    load_dofs: np.ndarray
-    torque_dofs: np.ndarray
-    spring_kind: np.ndarray
-    spring_dofs: np.ndarray
-    line_off: np.ndarray
-    line_elem: np.ndarray
-    # pattern
-    border_off: np.ndarray
-    border_map: np.ndarray
-    elem_map: np.ndarray
-    con_map_row: np.ndarray
-    con_map_col: np.ndarray
-    con_map_H: np.ndarray
-    load_map: np.ndarray
-    spring_map: np.ndarray
-    line_map: np.ndarray
-    # switch (module docstring)
-    extra_items: bool | None
-
-
-class DesignRows(NamedTuple):
-    """The design data of several designs as the rows each changes: for every design field of
-    :class:`SystemArrays`, ``(off, rows, vals)`` with ``off`` (n_x + 1,) and ``rows`` (nnz,)
-    int64 (CSR over the designs) and ``vals`` (nnz, *row shape): design ``i`` holds
-    ``vals[k]`` in row ``rows[k]`` for ``off[i] <= k < off[i + 1]`` and the nominal's entry in
-    every other row. Memory grows with what the variables change, not with n_x times the
-    model."""
-
-    gravity: tuple
-    body_scal: tuple
-    body_damp: tuple
-    flex_IS: tuple
-    flex_I0S: tuple
-    flex_I0IS: tuple
-    elem_M: tuple
-    elem_St: tuple
-    elem_K: tuple
-    con_u0: tuple
-    load_u0: tuple
-    spring_u0: tuple
-    spring_par: tuple
-    line_u0: tuple
-    line_N: tuple
-
-
-#: The fields of :class:`SystemArrays` a design variable can change (the floating-point ones).
-DESIGN_FIELDS = DesignRows._fields
+SystemArrays = namedtuple("SystemArrays", ("gravity",) + KIND_NAMES)
+Times = namedtuple("Times", TIMED_NAMES)
+#: Position of each kind in :data:`KIND_NAMES` (the ``kind`` of :func:`items`).
+POS = {name: j for j, name in enumerate(KIND_NAMES)}
 
 
 class Parts(NamedTuple):
-    """What a residual evaluation covers: index arrays of the bodies, elements, constraint
-    rows, loads (point and line loads), torques and spring-dampers, and a mask over the
-    flexible coordinates. The residual covers everything; a sensitivity pseudo-load only what
-    one design variable changes."""
+    """What a residual evaluation covers: the items of kind ``j`` (position in
+    :data:`KIND_NAMES`) are ``idx[off[j]:off[j + 1]]`` (int64), and the flexible coordinates
+    those with ``flex`` set. One packed layout whatever the kinds, so the parts of many design
+    variables are rows of one offset table over one index array."""
 
-    bodies: np.ndarray
-    elements: np.ndarray
+    off: np.ndarray
+    idx: np.ndarray
     flex: np.ndarray
-    rows: np.ndarray
-    loads: np.ndarray
-    torques: np.ndarray
-    springs: np.ndarray
 
 
-@njit(cache=True, inline="always")
-def all_parts(S):
-    """:class:`Parts` covering the whole system."""
-    return Parts(np.arange(S.body_ref.shape[0]), np.arange(S.elem_fdof.shape[0]),
-                 np.ones(S.flex_dof.shape[0], dtype=np.bool_), np.arange(S.con_kind.shape[0]),
-                 np.arange(S.load_dofs.shape[0]), np.arange(S.torque_dofs.shape[0]),
-                 np.arange(S.spring_kind.shape[0]))
+def _count(arrays, name: str) -> int:
+    table = getattr(arrays, name)
+    return 0 if table is None else table[0].shape[0]
 
 
-@njit(cache=True, inline="always")
-def _set_rows(w, s, d, i, on):
-    """Rows of design ``i`` (``d = (off, rows, vals)``) into ``w`` (``on``), or ``s``'s back."""
-    off, rows, vals = d
-    for k in range(off[i], off[i + 1]):
-        r = rows[k]
-        if on:
-            w[r] = vals[k]
-        else:
-            w[r] = s[r]
+def all_parts(arrays) -> Parts:
+    """:class:`Parts` covering every item of ``arrays`` (a :data:`SystemArrays`)."""
+    counts = [_count(arrays, k) for k in KIND_NAMES]
+    off = np.zeros(len(counts) + 1, dtype=np.int64)
+    off[1:] = np.cumsum(counts)
+    idx = np.concatenate([np.arange(n, dtype=np.int64) for n in counts])
+    return Parts(off, idx, np.ones(_count(arrays, "flex"), dtype=np.bool_))
 
 
-@njit(cache=True)
-def set_design(W, S, D, i, on):
-    """Write the rows design ``i`` of ``D`` (:class:`DesignRows`) changes into the design data
-    of ``W`` (``on`` True), or the nominal ``S``'s entries of those rows back (``on`` False):
-    ``W`` is then design ``i``, or the nominal again. ``W`` and ``S`` have equal shapes and
-    dtypes; only the design data of ``W`` is written."""
-    _set_rows(W.gravity, S.gravity, D.gravity, i, on)
-    _set_rows(W.body_scal, S.body_scal, D.body_scal, i, on)
-    _set_rows(W.body_damp, S.body_damp, D.body_damp, i, on)
-    _set_rows(W.flex_IS, S.flex_IS, D.flex_IS, i, on)
-    _set_rows(W.flex_I0S, S.flex_I0S, D.flex_I0S, i, on)
-    _set_rows(W.flex_I0IS, S.flex_I0IS, D.flex_I0IS, i, on)
-    _set_rows(W.elem_M, S.elem_M, D.elem_M, i, on)
-    _set_rows(W.elem_St, S.elem_St, D.elem_St, i, on)
-    _set_rows(W.elem_K, S.elem_K, D.elem_K, i, on)
-    _set_rows(W.con_u0, S.con_u0, D.con_u0, i, on)
-    _set_rows(W.load_u0, S.load_u0, D.load_u0, i, on)
-    _set_rows(W.spring_u0, S.spring_u0, D.spring_u0, i, on)
-    _set_rows(W.spring_par, S.spring_par, D.spring_par, i, on)
-    _set_rows(W.line_u0, S.line_u0, D.line_u0, i, on)
-    _set_rows(W.line_N, S.line_N, D.line_N, i, on)
+def parts_of_kinds(arrays, names) -> Parts:
+    """:class:`Parts` covering every item of the kinds ``names`` and nothing else (the
+    flexible coordinates all, with the bodies)."""
+    counts = [_count(arrays, k) if k in names else 0 for k in KIND_NAMES]
+    off = np.zeros(len(counts) + 1, dtype=np.int64)
+    off[1:] = np.cumsum(counts)
+    idx = np.concatenate([np.arange(n, dtype=np.int64) for n in counts])
+    flex = np.full(_count(arrays, "flex"), "bodies" in names, dtype=np.bool_)
+    return Parts(off, idx, flex)
+
+
+def pack_parts(arrays, per_variable: list) -> tuple:
+    """The parts of several design variables as one table: ``per_variable[i]`` maps kind names
+    to item indices (the flexible coordinates included, as indices). Returns ``(OFF (n_x,
+    n_kinds + 1), IDX, FOFF (n_x + 1,), FIDX)``: variable ``i``'s parts are
+    ``Parts(OFF[i], IDX, mask)`` with ``mask`` set at ``FIDX[FOFF[i]:FOFF[i + 1]]``."""
+    n_k = len(KIND_NAMES)
+    OFF = np.zeros((len(per_variable), n_k + 1), dtype=np.int64)
+    chunks, fchunks = [], []
+    start = 0
+    for i, parts in enumerate(per_variable):
+        OFF[i, 0] = start
+        for j, name in enumerate(KIND_NAMES):
+            sel = np.zeros(0, np.int64) if name == "flex" else np.asarray(
+                parts.get(name, ()), dtype=np.int64)
+            chunks.append(sel)
+            start += sel.size
+            OFF[i, j + 1] = start
+        fchunks.append(np.asarray(parts.get("flex", ()), dtype=np.int64))
+    IDX = np.concatenate(chunks) if chunks else np.zeros(0, np.int64)
+    FOFF = np.zeros(len(per_variable) + 1, dtype=np.int64)
+    FOFF[1:] = np.cumsum([c.size for c in fchunks])
+    FIDX = np.concatenate(fchunks) if fchunks else np.zeros(0, np.int64)
+    return OFF, IDX, FOFF, FIDX
+
+
+def time_fields(name: str) -> tuple:
+    """The time fields of kind ``name``."""
+    return KINDS[name].by_role(TIME)
+
+
+@inner
+def set_positions(D, pos, val):
+    """``D[pos[j]] = val[j]`` for every ``j`` (a design's entries into the flat design data;
+    the nominal's back, with the nominal's values)."""
+    for j in range(pos.shape[0]):
+        D[pos[j]] = val[j]

@@ -128,8 +128,8 @@ def _extremes(result, info, chunk: int = 256) -> tuple[np.ndarray, float]:
     stress magnitude of the run."""
     system = result.system
     nd = info.node_dofs[:, :2]
-    ed = system.elem_dofs[info.elements]
-    B = np.real(system.elem_B[info.elements]).reshape(ed.shape[0], 4, 6)
+    ed = system.arrays.elements.dofs[info.elements]
+    B = np.real(system.arrays.elements.B[info.elements]).reshape(ed.shape[0], 4, 6)
     amp = np.zeros(result.n_t)
     sigma = 0.0
     for k0 in range(0, result.n_t, chunk):

@@ -4,7 +4,7 @@ A response ``f(result) -> scalar`` that can be differentiated by the adjoint met
 ``vjp(result) -> ResponseVJP`` method: its value and the derivatives ``∂f/∂q_n``, ``∂f/∂q'_n``,
 ``∂f/∂q''_n``, ``∂f/∂λ_n`` at every time index ``n`` it reads (``at(n)``), and the derivatives
 with respect to the compiled system data it reads directly (``data``, e.g. the stress maps
-``elem_B`` or a beam's node positions in its frame). The sensitivity code maps the data
+``elements.B`` or a beam's node positions in its frame). The sensitivity code maps the data
 derivatives to the design variables with the derivatives of that data (``docs/theory.md`` §7).
 """
 
@@ -70,11 +70,14 @@ class ResponseVJP:
 
 
 def system_data(system, key: str) -> np.ndarray:
-    """The array of ``system`` a data key names: a System field (``"elem_B"``) or a body's
-    table (``"body:<name>:X"``)."""
+    """The array of ``system`` a data key names: a kind's field (``"elements.B"``), a body's
+    table (``"body:<name>:X"``) or a System field (``"q0"``)."""
     if key.startswith("body:"):
         _, name, field = key.split(":")
         return getattr(system.body(name), field)
+    if "." in key:
+        kind, field = key.split(".")
+        return getattr(system.table(kind), field)
     return getattr(system, key)
 
 
@@ -108,9 +111,9 @@ class StressMap:
         system = result.system
         info = system.body(body)
         self.result, self.times, self.chunk = result, np.asarray(times), chunk
-        self.ed = system.elem_dofs[info.elements]
+        self.ed = system.arrays.elements.dofs[info.elements]
         self.keep = self.ed >= 0
-        self.B = np.real(system.elem_B[info.elements]).reshape(-1, 4, 6)
+        self.B = np.real(system.arrays.elements.B[info.elements]).reshape(-1, 4, 6)
         self.n_dof = system.n_dof
         n_e = self.B.shape[0]
         rows = np.broadcast_to(np.arange(4 * n_e).reshape(n_e, 4, 1), self.B.shape)
@@ -141,7 +144,7 @@ class StressMap:
 
 def stress_vjp(result, body: str, G: np.ndarray, times) -> tuple[np.ndarray, np.ndarray]:
     """Derivatives of ``sum(G * result.stress(body)[times])``: with respect to ``q`` at each
-    of ``times`` ((len(times), n_dof)) and to the stress maps ``elem_B`` of the beam's
+    of ``times`` ((len(times), n_dof)) and to the stress maps ``elements.B`` of the beam's
     elements ((n_elem, 2, 2, 6)). ``G`` (len(times), n_elem, 2, 2)."""
     smap = StressMap(result, body, times)
     Gr = np.real(G).reshape(G.shape[0], -1, 4)

@@ -95,9 +95,9 @@ def _geometry(system, info, body: Beam):
     X = np.real(np.asarray(body.nodes))
     d = np.diff(X, axis=0)
     ell = np.sqrt(np.sum(d * d, axis=1))
-    kb = system.elem_body[info.elements]
+    kb = system.arrays.elements.body[info.elements]
     frame = kb - kb[0]
-    th0 = np.real(system.q0[system.body_ref[kb, 2]])
+    th0 = np.real(system.q0[system.arrays.bodies.ref[kb, 2]])
     alpha = np.arctan2(d[:, 1], d[:, 0]) - th0
     EA = np.real(np.broadcast_to(np.asarray(body.E * body.area), ell.shape))
     return ell, np.cos(alpha), np.sin(alpha), frame, EA
@@ -108,8 +108,8 @@ def _beam(result, body: Beam, chunk: int = 256) -> BeamKinematics:
     info = system.body(body.name)
     ell, ca, sa, frame, EA = _geometry(system, info, body)
     k = int(frame[-1]) + 1
-    ed = system.elem_dofs[info.elements]
-    K = np.real(system.elem_K[info.elements])
+    ed = system.arrays.elements.dofs[info.elements]
+    K = np.real(system.arrays.elements.K[info.elements])
     nd = info.node_dofs[:, :2]
     rot = np.zeros(k)
     stretch = np.zeros(k)

@@ -2,12 +2,14 @@
 
 The equations of motion are ``M q'' + J^T lam = Q``: a constraint row ``g = g_P - g_Q`` (side 0
 minus side 1, ``morphlab.kernels.joints``) pushes side 0's point with ``-lam dg_P/dr`` and side
-1's with ``+lam dg_Q/dr`` (for a slide row both along the guide's normal ``n``, applied at the
-slider's point). A joint's **reaction** is the sum over its rows of the force and moment on the
-body it holds: on ``b`` for a two-body joint (the action of ``a`` on ``b``; if ``b`` is the
-ground, minus the action on ``a``), on ``body`` for a fix or a drive (the action of the
-ground). Forces act at the joint's point on that body (the slider's point for a prismatic
-joint); the moment is the couple the joint transmits (zero for a revolute).
+1's with ``+lam dg_Q/dr``. A joint's **reaction** is the sum over its rows of the force and
+moment on the body it holds: on ``b`` for a two-body joint (the action of ``a`` on ``b``; if
+``b`` is the ground, minus the action on ``a``), on ``body`` for a fix or a drive (the action of
+the ground). Forces act at the joint's point on that body (the slider's point for a prismatic
+joint); the moment is the couple the joint transmits (zero for a revolute). The force and
+moment of a unit multiplier of a row are the row kind's own (its
+:attr:`~morphlab.kernels.schema.Kind.reactions`), so a new kind of constraint needs nothing
+here.
 
 Everything is written with NumPy operations that keep complex values, so responses built on
 reactions can be differentiated by complex step.
@@ -17,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compile.system import extra_items
 from ..errors import ModelError
-from ..kernels.joints import ROW_ANGLE, ROW_SLIDE, ROW_X, ROW_Y, constraint_values
+from ..kernels.schema import KINDS
+from ..kernels.system import KIND_NAMES, TIMED_NAMES
 
 
 def reaction_rows(system, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -36,21 +38,19 @@ def reaction_rows(system, name: str) -> tuple[np.ndarray, np.ndarray]:
     return rows, signs
 
 
-def _directions(system, rows, q) -> np.ndarray:
+def _directions(system, rows, q, arrays=None) -> np.ndarray:
     """``(n_t, n_rows, 3)``: the force (x, y) and moment of a unit multiplier of each row on
-    side 1 (the global normal of a slide row at the times of ``q`` (n_t, n_dof))."""
-    kind = system.con_kind[rows]
+    its held side, at the times of ``q`` (n_t, n_dof) (``arrays``: the kinds' arrays to read,
+    by default the system's)."""
+    arrays = system.arrays if arrays is None else arrays
     out = np.zeros((q.shape[0], rows.size, 3), dtype=np.result_type(q, system.dtype))
-    out[:, kind == ROW_X, 0] = 1.0
-    out[:, kind == ROW_Y, 1] = 1.0
-    out[:, kind == ROW_ANGLE, 2] = 1.0
-    for k in np.flatnonzero(kind == ROW_SLIDE):
-        i = rows[k]
-        psi = system.con_u0[i, 1, 2] + 0.0 * q[:, 0]
-        for d in system.con_dofs[i, 1, [2, 5]]:
-            if d >= 0:
-                psi = psi + q[:, d]
-        out[:, k, 0], out[:, k, 1] = np.cos(psi), np.sin(psi)
+    kinds = np.asarray(system.con_kind)[rows]
+    for k in np.unique(kinds):
+        sel = np.flatnonzero(kinds == k)
+        name = KIND_NAMES[int(k)]
+        items = np.asarray(system.con_item)[rows[sel]]
+        sides = np.asarray(system.con_side)[rows[sel]]
+        out[:, sel] = KINDS[name].reactions(getattr(arrays, name), items, sides, q)
     return out
 
 
@@ -63,18 +63,11 @@ def _rotation_to(system, frame: str | None, q):
     return np.cos(th), np.sin(th)
 
 
-def reaction(result, name: str, frame: str | None = None) -> np.ndarray:
-    """Force and moment joint ``name`` transmits to the body it holds (module docstring),
-    (n_t, 3): ``F_x, F_y`` [force] in the global frame, or in the frame of body ``frame``, and
-    the moment [force·length] (counter-clockwise positive)."""
-    if result.lam is None or result.q is None:
-        raise ModelError("reactions need the histories of lam and q: run with store "
-                         "including 'lam' and 'q'")
-    s = result.system
-    rows, signs = reaction_rows(s, name)
-    dirs = _directions(s, rows, result.q)
-    out = np.einsum("tkc,tk->tc", dirs, result.lam[:, rows] * signs)
-    rot = _rotation_to(s, frame, result.q)
+def _reaction(system, name, frame, q, lam, arrays=None):
+    rows, signs = reaction_rows(system, name)
+    dirs = _directions(system, rows, q, arrays)
+    out = np.einsum("tkc,tk->tc", dirs, lam[:, rows] * signs)
+    rot = _rotation_to(system, frame, q)
     if rot is not None:
         c, sn = rot
         out = np.stack([c * out[:, 0] + sn * out[:, 1], -sn * out[:, 0] + c * out[:, 1],
@@ -82,66 +75,101 @@ def reaction(result, name: str, frame: str | None = None) -> np.ndarray:
     return out
 
 
+def reaction(result, name: str, frame: str | None = None) -> np.ndarray:
+    """Force and moment joint ``name`` transmits to the body it holds (module docstring),
+    (n_t, 3): ``F_x, F_y`` [force] in the global frame, or in the frame of body ``frame``, and
+    the moment [force·length] (counter-clockwise positive)."""
+    if result.lam is None or result.q is None:
+        raise ModelError("reactions need the histories of lam and q: run with store "
+                         "including 'lam' and 'q'")
+    return _reaction(result.system, name, frame, result.q, result.lam)
+
+
 def reaction_vjp(result, name: str, component: int, n: int, frame: str | None = None):
-    """Derivatives of ``reaction(result, name, frame)[n, component]`` (real parts): with
-    respect to ``q`` (n_dof,) and ``lam`` (n_con,) at time index ``n``, and to ``con_u0``
-    (the angle of a slide row's guide): ``(dq, dlam, dcon_u0)``."""
-    s = result.system
-    rows, signs = reaction_rows(s, name)
-    q = np.real(result.q[n])[None]
-    lam = np.real(result.lam[n, rows]) * signs
-    dirs = _directions(s, rows, q)[0].real  # (k, 3)
-    # d dir/d psi of slide rows: the guide's tangent (-sin psi, cos psi, 0)
-    tang = np.stack([-dirs[:, 1], dirs[:, 0], 0.0 * dirs[:, 0]], axis=1)
-    slide = s.con_kind[rows] == ROW_SLIDE
-    dq = np.zeros(s.n_dof)
-    if frame is not None:
-        ref = s.body(frame).ref[2]
-        c, sn = np.cos(q[0, ref]), np.sin(q[0, ref])
-        rot = np.array([[c, sn, 0.0], [-sn, c, 0.0], [0.0, 0.0, 1.0]])
-        F = rot @ (dirs.T @ lam)
-        # d(rot F)/d theta: (F'_1, -F'_0, 0)
-        dq[ref] += (F[1], -F[0], 0.0)[component]
-    else:
-        rot = np.eye(3)
-    dlam = np.zeros(s.n_con)
-    dlam[rows] = signs * (dirs @ rot.T)[:, component]
-    du = np.zeros(np.shape(s.con_u0))
-    dpsi = lam * (tang @ rot.T)[:, component]
-    for k in np.flatnonzero(slide):
-        du[rows[k], 1, 2] = dpsi[k]
-        for d in s.con_dofs[rows[k], 1, [2, 5]]:
-            if d >= 0:
-                dq[d] += dpsi[k]
-    return dq, dlam, du
-
-
-def _drive(result, name: str):
-    """Check that ``name`` is a drive: a joint whose rows are all driven (time-dependent)."""
+    """Derivatives of ``reaction(result, name, frame)[n, component]`` (real parts), by complex
+    step of :func:`reaction` at time index ``n``: with respect to ``q`` (n_dof,) and ``lam``
+    (n_con,) there, and to the design data of the joint's row kinds (``{"<kind>.u0":
+    array shaped like that field}``)."""
     s = result.system
     rows, _ = reaction_rows(s, name)
-    driven = {row for row, _ in s.con_drive}
+    q = np.real(result.q[n])[None].astype(complex)
+    lam = np.real(result.lam[n])[None].astype(complex)
+    h = 1e-30
+
+    def value(q, lam, arrays=None):
+        return _reaction(s, name, frame, q, lam, arrays)[0, component]
+
+    dq = np.zeros(s.n_dof)
+    touched = set()
+    for i in rows:
+        table = s.table(KIND_NAMES[int(s.con_kind[i])])
+        touched.update(int(d) for d in table.dofs[s.con_item[i]].ravel() if d >= 0)
+    if frame is not None:
+        touched.add(int(s.body(frame).ref[2]))
+    for d in sorted(touched):
+        qp = q.copy()
+        qp[0, d] += 1j * h
+        dq[d] = value(qp, lam).imag / h
+    dlam = np.zeros(s.n_con)
+    for i in rows:
+        lp = lam.copy()
+        lp[0, i] += 1j * h
+        dlam[i] = value(q, lp).imag / h
+    data = {}
+    arrays = s.arrays_as(complex)
+    for k in np.unique(np.asarray(s.con_kind)[rows]):
+        name_k = KIND_NAMES[int(k)]
+        table = getattr(arrays, name_k)
+        u0 = np.array(table.u0)
+        du = np.zeros(u0.shape)
+        for i in np.asarray(s.con_item)[rows[np.asarray(s.con_kind)[rows] == k]]:
+            for idx in np.ndindex(u0.shape[1:]):
+                up = u0.copy()
+                up[(i,) + idx] += 1j * h
+                pert = arrays._replace(**{name_k: table._replace(u0=up)})
+                du[(i,) + idx] = value(q, lam, pert).imag / h
+        data[f"{name_k}.u0"] = du
+    return dq, dlam, data
+
+
+def _drive_rows(result, name: str) -> np.ndarray:
+    """The rows of drive ``name``: a joint whose rows are all driven (time-dependent)."""
+    s = result.system
+    rows, _ = reaction_rows(s, name)
+    driven = set(_driven(s).tolist())
     if not set(rows.tolist()) <= driven:
-        drives = dict.fromkeys(s.con_joint[row] for row, _ in s.con_drive)
+        drives = dict.fromkeys(s.con_joint[row] for row in sorted(driven))
         raise ModelError(f"joint {name!r} is not a drive (drives: "
                          f"{', '.join(map(repr, drives)) or 'none'})")
+    return rows
+
+
+def _driven(s) -> np.ndarray:
+    """The constraint rows with a time profile (the drives' rows)."""
+    out = []
+    for name in TIMED_NAMES:
+        table = s.table(name)
+        if table is None or not hasattr(table, "con"):
+            continue
+        out += [int(table.con[i]) for i, _ in s.time_profiles.get(name, ())]
+    return np.array(sorted(out), dtype=np.int64)
 
 
 def drive_torque(result, name: str) -> np.ndarray:
     """Torque [force·length] the drive ``name`` applies to its body, (n_t,)."""
-    _drive(result, name)
+    _drive_rows(result, name)
     return reaction(result, name)[:, 2]
 
 
 def drive_power(result, name: str) -> np.ndarray:
     """Power [force·length/time] the drive ``name`` delivers to the mechanism: its torque
     times the rate of the driven angle, (n_t,)."""
-    _drive(result, name)
+    rows = _drive_rows(result, name)
     s = result.system
-    rows, _ = reaction_rows(s, name)
     i = rows[0]
+    table = s.table(KIND_NAMES[int(s.con_kind[i])])
     rate = 0.0 * result.v[:, 0]
-    for d in s.con_dofs[i, 0, [2, 5]]:
+    for d in table.dofs[s.con_item[i], 0, [2, 5]]:
         if d >= 0:
             rate = rate + result.v[:, d]
     return drive_torque(result, name) * rate
@@ -151,19 +179,15 @@ def drive_power_total(result) -> np.ndarray:
     """Power of every driven constraint row together, ``-sum lam_i (J q')_i``, (n_t,) (real
     parts: the energy balance; NaN when the run did not keep ``lam``)."""
     s = result.system
-    driven = np.array([row for row, _ in s.con_drive], dtype=np.int64)
+    driven = _driven(s)
     out = np.zeros(result.n_t)
     if driven.size == 0:
         return out
     if result.lam is None:
         return out * np.nan
-    C = np.zeros(s.n_con, dtype=s.dtype)
-    phi = np.zeros(s.n_con, dtype=s.dtype)
-    Jv = np.zeros(s.n_con, dtype=s.dtype)
-    u0 = np.ascontiguousarray(s.con_u0)
-    extra = extra_items(s)
     for k in range(result.n_t):
-        constraint_values(extra, result.q[k], result.v[k], C, C, s.con_kind, s.con_dofs, u0,
-                          phi, Jv)
-        out[k] = -np.real(np.sum(result.lam[k, driven] * Jv[driven]))
+        # J q' - c' + c' at the time of step k: the velocity-level rows with the target rate
+        _, Jv = s.constraint_violation(result.q[k], result.v[k], result.t[k])
+        _, cd = s.constraint_violation(result.q[k], 0.0 * result.v[k], result.t[k])
+        out[k] = -np.real(np.sum(result.lam[k, driven] * (Jv[driven] - cd[driven])))
     return out

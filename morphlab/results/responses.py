@@ -134,7 +134,7 @@ class ks_max_stress:  # noqa: N801 - a response factory, named like the function
         The earlier name of ``rho`` (deprecated).
 
     Has ``vjp`` (the adjoint method): the derivatives with respect to ``q`` at every time,
-    streamed, and to the stress maps ``elem_B``.
+    streamed, and to the stress maps ``elements.B``.
     """
 
     def __init__(self, body: str, rho: float | None = None, *, rho_rel: float = 100.0,
@@ -206,13 +206,14 @@ class ks_max_stress:  # noqa: N801 - a response factory, named like the function
             return {"q": dq}
 
         return ResponseVJP(value, stream=stream,
-                           data={"elem_B": _full_elem_B(result, self.body,
+                           data={"elements.B": _full_elem_B(result, self.body,
                                                         dB.reshape(-1, 2, 2, 6))})
 
 
 def _full_elem_B(result, body: str, dB: np.ndarray) -> np.ndarray:
-    """``dB`` of one beam's elements placed in an array shaped like ``system.elem_B``."""
-    out = np.zeros(np.shape(result.system.elem_B))
+    """``dB`` of one beam's elements placed in an array shaped like the stress maps
+    ``elements.B``."""
+    out = np.zeros(np.shape(result.system.arrays.elements.B))
     out[result.system.body(body).elements] = dB
     return out
 
@@ -347,7 +348,7 @@ class reaction:  # noqa: N801 - a response factory
         dq, dlam, du = reactions.reaction_vjp(result, self.joint, self.component, n,
                                               self.frame)
         return ResponseVJP(float(np.real(self(result))), terms={n: {"q": dq, "lam": dlam}},
-                           data={"con_u0": du})
+                           data=du)
 
 
 def _terms(n1: int, g1, n0: int, g0) -> dict:

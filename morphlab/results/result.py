@@ -10,10 +10,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compile.system import System, kernel_arrays, time_table
+from ..compile.system import System, time_table
 from ..errors import ModelError
-from ..kernels.assemble import add_residual, applied_residual
-from ..kernels.forces import spring_measures
+from ..kernels.assemble import residual
+from ..kernels.ffrf import scratch
+from ..kernels.forces import measures as spring_measures
+from ..kernels.schema import KINDS
+from ..kernels.system import parts_of_kinds
+from ..kernels.types import Level, Weights
 from ..model import Beam, RigidBody
 from . import reactions
 from .kinematics import kinematics
@@ -200,8 +204,8 @@ class Result:
         if info.kind != "beam":
             raise ModelError(f"body {body!r} is not a beam; stress is defined for beams")
         sl = info.elements
-        ed = self.system.elem_dofs[sl]
-        B = self.system.elem_B[sl]
+        ed = self.system.arrays.elements.dofs[sl]
+        B = self.system.arrays.elements.B[sl]
         n_e = B.shape[0]
         d = self.q.T[np.maximum(ed, 0)]  # (n_elem, 6, n_t): rows of q^T, one temporary
         d[ed < 0] = 0.0
@@ -229,12 +233,13 @@ class Result:
         ``force`` (tension, or moment) ``k stretch + c rate + f0``. Complex-safe: usable in a
         response."""
         s = self.system
-        if name not in s.spring_names:
-            known = ", ".join(repr(n) for n in s.spring_names) or "none"
+        names = s.names.get("springs", [])
+        if name not in names:
+            known = ", ".join(repr(n) for n in names) or "none"
             raise ModelError(f"no spring-damper {name!r} in the model (spring-dampers: {known})")
-        i = s.spring_names.index(name)
+        i = names.index(name)
         meas = _spring_histories(s, self)[:, i]
-        k, c, s0, f0 = s.spring_par[i]
+        k, c, s0, f0 = s.table("springs").par[i]
         stretch = meas[:, 0] - s0
         return {"stretch": stretch, "rate": meas[:, 1], "force": k * stretch + c * meas[:, 1] + f0}
 
@@ -305,7 +310,7 @@ def energy(res: Result) -> dict:
         raise ModelError("the energy needs the histories of q and v: run with store "
                          "including 'q' and 'v'")
     s = res.system
-    S = kernel_arrays(s)
+    A = s.arrays
     n, n_dof = s.n, s.n_dof
     zeros_c = np.zeros(s.n_con, dtype=s.dtype)
     n_t = res.n_t
@@ -314,43 +319,31 @@ def energy(res: Result) -> dict:
     grav = np.zeros(n_t)
     power_ext = np.zeros(n_t)
     power_damp = np.zeros(n_t)
-    ed = s.elem_dofs
-    no_springs = np.zeros(0, dtype=np.int64)
-    table = time_table(s, res.t) if n_t else ()
+    E = A.elements
+    ed = E.dofs
+    beta = A.bodies.damp[E.body]
+    T = time_table(s, res.t) if n_t else None
+    W = scratch(s.count("flex"), np.zeros(1, dtype=s.dtype))
+    inertia = parts_of_kinds(A, ("bodies", "flex", "elements"))
+    loads = parts_of_kinds(A, [k for k, kind in KINDS.items() if kind.work])
+    w_inertia = Weights(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    w_loads = Weights(0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    zero = np.zeros(n_dof, dtype=s.dtype)
     for i in range(n_t):
-        q, v = res.q[i], res.v[i]
-        c, cd, cdd, F, T = (x[i] for x in table)
-        # M v through the inertia term of the residual kernel (weights 1, 0)
+        q, v = np.ascontiguousarray(res.q[i]), np.ascontiguousarray(res.v[i])
+        # M v through the inertia term of the residual kernel (the acceleration slot holds v)
         R = np.zeros(n, dtype=s.dtype)
-        zero = np.zeros(n_dof, dtype=s.dtype)
-        add_residual(S, q, zero, v, zeros_c, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, c, cd, cdd,
-                     F * 0, T * 0, n_dof, R)
+        residual(A, Level(q, zero, v, zeros_c), w_inertia, T, 0, i, inertia, n_dof, R, W)
         kin[i] = 0.5 * np.real(v @ R[:n_dof])
         d = np.where(ed >= 0, q[np.maximum(ed, 0)], 0.0)
         dv = np.where(ed >= 0, v[np.maximum(ed, 0)], 0.0)
-        Kd = np.einsum("eij,ej->ei", s.elem_K, d)
-        strain[i] = 0.5 * np.real(np.sum(d * Kd))
-        beta = s.body_damp[s.elem_body]
-        power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", s.elem_K, dv)))
-        # external power: -Q_ext . v from the load kernels alone (the springs: _spring_energy)
+        strain[i] = 0.5 * np.real(np.sum(d * np.einsum("eij,ej->ei", E.K, d)))
+        power_damp[i] = np.real(np.sum(beta[:, None] * dv * np.einsum("eij,ej->ei", E.K, dv)))
+        # external power: -Q_ext . v of the kinds that are loads (their residual is -Q_ext)
         Rl = np.zeros(n, dtype=s.dtype)
-        loads = np.arange(s.load_dofs.shape[0])
-        applied_residual(S.extra_items, S, q, v, 1.0, F, T, loads,
-                         np.arange(s.torque_dofs.shape[0]), no_springs, Rl)
+        residual(A, Level(q, v, zero, zeros_c), w_loads, T, 0, i, loads, n_dof, Rl, W)
         power_ext[i] = -np.real(v @ Rl[:n_dof])
-        # gravity potential: -m g . r_cm, r_cm = R + A c_u / m
-        for b in range(s.body_ref.shape[0]):
-            ref = s.body_ref[b]
-            m = np.real(s.body_scal[b, 0])
-            cu = np.real(s.body_scal[b, 1:3]).astype(float)
-            f0, f1 = s.flex_off[b], s.flex_off[b + 1]
-            if f1 > f0:
-                cu = cu + np.real(s.flex_IS[f0:f1].T @ q[s.flex_dof[f0:f1]])
-            th = np.real(q[ref[2]])
-            Acu = np.array([np.cos(th) * cu[0] - np.sin(th) * cu[1],
-                            np.sin(th) * cu[0] + np.cos(th) * cu[1]])
-            r = np.real(q[ref[:2]]) * m + Acu
-            grav[i] -= float(np.real(s.gravity) @ r)
+        grav[i] = _gravity_potential(s, q)
     spring, power_spring = _spring_energy(s, res)
     work = _cumulative(power_ext, res.t)
     diss = _cumulative(power_damp + power_spring, res.t)
@@ -360,16 +353,35 @@ def energy(res: Result) -> dict:
             "total": kin + strain + grav + spring}
 
 
+def _gravity_potential(s: System, q) -> float:
+    """``-sum m g . r_cm`` over the bodies, ``r_cm = R + A c_u / m`` (real parts)."""
+    B, Fx = s.arrays.bodies, s.arrays.flex
+    out = 0.0
+    for b in range(B.ref.shape[0]):
+        ref = B.ref[b]
+        m = np.real(B.scal[b, 0])
+        cu = np.real(B.scal[b, 1:3]).astype(float)
+        f0, f1 = B.flex[b]
+        if f1 > f0:
+            cu = cu + np.real(Fx.IS[f0:f1].T @ q[Fx.dof[f0:f1]])
+        th = np.real(q[ref[2]])
+        Acu = np.array([np.cos(th) * cu[0] - np.sin(th) * cu[1],
+                        np.sin(th) * cu[0] + np.cos(th) * cu[1]])
+        r = np.real(q[ref[:2]]) * m + Acu
+        out -= float(np.real(s.arrays.gravity) @ r)
+    return out
+
+
 def _spring_histories(s: System, res: Result) -> np.ndarray:
     """The measure ``s`` and rate ``s'`` of every spring-damper at every time,
-    (n_t, n_spring, 2) (``kernels.forces.spring_measures``)."""
+    (n_t, n_spring, 2) (``kernels.forces.measures``)."""
     if res.q is None or res.v is None:
         raise ModelError("the spring-dampers need the histories of q and v: run with store "
                          "including 'q' and 'v'")
     dt = np.result_type(s.dtype, res.q.dtype, res.v.dtype)
-    out = np.zeros((res.n_t, s.spring_kind.shape[0], 2), dtype=dt)
+    out = np.zeros((res.n_t, s.count("springs"), 2), dtype=dt)
     if out.size:
-        spring_measures(kernel_arrays(s, dt), np.ascontiguousarray(res.q, dtype=dt),
+        spring_measures(s.arrays_as(dt).springs, np.ascontiguousarray(res.q, dtype=dt),
                         np.ascontiguousarray(res.v, dtype=dt), out)
     return out
 
@@ -377,11 +389,11 @@ def _spring_histories(s: System, res: Result) -> np.ndarray:
 def _spring_energy(s: System, res: Result) -> tuple[np.ndarray, np.ndarray]:
     """Potential ``k (x^2)/2 + f0 x`` (``x = s - s0``) of the spring-dampers summed, and the
     power ``c s'^2`` their dampers dissipate, at every time (real parts, (n_t,) each)."""
-    n_t, n_s = res.n_t, s.spring_kind.shape[0]
+    n_t, n_s = res.n_t, s.count("springs")
     if n_s == 0 or n_t == 0:
         return np.zeros(n_t), np.zeros(n_t)
     out = _spring_histories(s, res)
-    k, c, s0, f0 = np.real(s.spring_par).T
+    k, c, s0, f0 = np.real(s.table("springs").par).T
     x = np.real(out[..., 0]) - s0
     return (np.sum(0.5 * k * x * x + f0 * x, axis=1),
             np.sum(c * np.real(out[..., 1]) ** 2, axis=1))

@@ -2,7 +2,7 @@
 its factorizations and its residual kernels."""
 
 from .api import SensitivityResult, sensitivities
-from .strategies import Adjoint, Auto, ComplexStep, Direct, FiniteDifference
+from .strategies import Adjoint, Auto, ComplexStep, Direct, FiniteDifference, Strategy
 
 __all__ = ["Adjoint", "Auto", "ComplexStep", "Direct", "FiniteDifference", "SensitivityResult",
-           "sensitivities"]
+           "Strategy", "sensitivities"]

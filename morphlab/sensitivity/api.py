@@ -1,50 +1,19 @@
-"""Design sensitivities of dynamic responses (paper §3, ``docs/theory.md`` §6).
+"""Design sensitivities of dynamic responses (paper §3, ``docs/theory.md`` §6-§7):
+:func:`sensitivities`, the one entry point, and its :class:`SensitivityResult`.
 
-Direct differentiation of the step residual ``R(z_{n+1}(p); s_n(p), p) = 0`` gives, for every
-design variable ``p_i``,
-
-    J dz_{n+1}/dp_i = -D_i R,    D_i R = R_s ds_n/dp_i + dR/dp_i
-
-with ``J`` the exact Newton matrix of the converged step. The pseudo-load is split as in the
-paper (eq. 35, 37):
-
-* the state part ``R_s ds_n``: the residual sees the old state through the Newmark predictors
-  (and, with the paper's weighting, its old-level share), so it is ``R_q dq_hat + R_v dv_hat
-  (+ ...)`` with ``R_q``, ``R_v`` from the primal's own Newton-matrix kernel, exact and shared
-  by all variables;
-* the partial derivative ``dR/dp_i`` at the converged state, through the primal's residual
-  kernel evaluated over only the bodies, elements, joint rows and loads whose data ``p_i``
-  changes, by complex step ``Im R(z; p + i h e_i) / h`` with ``h = 1e-30`` (``method="direct"``,
-  exact to round-off) or by a forward difference (``method="direct-fd"``, the paper's
-  semi-analytical variant: first order where the residual is nonlinear in the changed data,
-  e.g. a thickness, exact up to round-off where it is linear, e.g. E, a load, a rigid body's
-  joint point; a geometry change that moves a beam's nodes can make its partial derivatives
-  large against the total, and the difference's truncation error with them).
-
-All right-hand sides of a step are solved with the primal's last factorization. That
-factorization is taken at the Newton iterate before the final correction ``dz``; the mismatch
-``J(z_k) - J(z*) = O(|dz|)`` is removed by iterative refinement against the exact matrix at the
-converged point (assembled, not factored), so no factorization beyond the primal's is needed.
-The Newmark update is linear, so ``dq_{n+1} = dq_hat + beta h² da_{n+1}``,
-``dv_{n+1} = dv_hat + gamma h da_{n+1}``. Initial sensitivities: ``dq_0, dv_0`` from ``build``
-by complex step (forward difference for ``direct-fd``), ``da_0, dlam_0`` from the
-differentiated initial solve. The run is :mod:`morphlab.sensitivity.direct`, the compiled
-work of a step :mod:`morphlab.kernels.direct`.
-
-Response gradients ``dr/dp_i = d/de r(history + e d(history)/dp_i; p + e e_i)`` are taken by
-complex step of the response over the perturbed histories, so any complex-safe function of a
-:class:`~morphlab.results.result.Result` works.
-
-Comparators: ``"complex-step"`` (the whole simulation in complex arithmetic, one run per
-variable: the reference, no truncation error), ``"forward-difference"`` (n_x + 1 runs) and
-``"central-difference"`` (2 n_x + 1 runs). Each method is a strategy object of
-:mod:`morphlab.sensitivity.strategies`; the strings are aliases.
+The method is a strategy object (:mod:`morphlab.sensitivity.strategies`): direct
+differentiation (:mod:`morphlab.sensitivity.direct`), the discrete adjoint
+(:mod:`morphlab.sensitivity.adjoint`), whichever is cheaper (``"auto"``, the default), or the
+comparators — the whole run in complex arithmetic per variable (``"complex-step"``, the
+reference: no truncation error) and finite differences of whole runs. Response gradients of the
+direct and complex-step methods are taken by complex step of the response over each variable's
+perturbed histories, so any complex-safe function of a
+:class:`~morphlab.results.result.Result` works; the adjoint needs responses with a ``vjp``.
 """
 
 from __future__ import annotations
 
 import numbers
-import os
 import time as _time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -52,12 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import compile_model
-from ..errors import MorphlabError, ResponseError, SensitivityError
+from ..errors import Interrupted, MorphlabError, ResponseError, SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
+from .designs import CS_STEP, call_build
 from .histories import HISTORIES
-from .perturb import CS_STEP, ComplexDesigns, call_build, relative_steps
-from .strategies import Auto, Setup, resolve
+from .strategies import FiniteDifference, Setup, Strategy, resolve
 
 
 @dataclass(repr=False)
@@ -184,9 +153,9 @@ def _check_inputs(p0, names, responses, store) -> None:
 
 
 def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
-                  responses: Mapping[str, Callable[[Result], float]], *, method="direct",
-                  variables: list | None = None, settings: Settings | None = None,
-                  step: float = 1e-6, refine: int = 1, store="auto", progress: bool = False,
+                  responses: Mapping[str, Callable[[Result], float]], *,
+                  method: str | Strategy = "auto", variables: list | None = None,
+                  settings: Settings | None = None, store="auto", progress: bool = False,
                   **options) -> SensitivityResult:
     """Values and design gradients of ``responses`` of the model ``build(p0)``.
 
@@ -199,21 +168,17 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
         Nominal design.
     responses : dict[str, callable]
         ``f(result) -> scalar``, complex-safe (see :mod:`morphlab.responses`).
-    method : str or strategy
-        ``"direct"``, ``"direct-fd"``, ``"adjoint"``, ``"auto"`` (direct or adjoint, whichever
-        is cheaper), ``"complex-step"``, ``"forward-difference"``, ``"central-difference"``
-        (module docstring), or a strategy object of :mod:`morphlab.sensitivity.strategies`
-        (``Direct(...)``, ``Adjoint(...)``, ``Auto(...)``, ``ComplexStep()``,
-        ``FiniteDifference(kind, step)``) with its own options.
+    method : str or Strategy
+        ``"auto"`` (the default: direct or adjoint, whichever is cheaper), ``"direct"``,
+        ``"direct-fd"``, ``"adjoint"``, ``"complex-step"``, ``"forward-difference"``,
+        ``"central-difference"`` (module docstring), or a strategy object of
+        :mod:`morphlab.sensitivity.strategies` with its own options (``Direct(reuse=False)``,
+        ``Adjoint(memory=...)``, ``FiniteDifference("central", 1e-5)``, a user's
+        :class:`~morphlab.sensitivity.strategies.Strategy` subclass).
     variables : list[str], optional
         Subset of ``p0`` to differentiate (default: all).
     settings : Settings, optional; **options
         Solver settings, as in :func:`morphlab.simulate` (``t_end``, ``dt``, ``rho_inf``, ...).
-    step : float
-        With a method string: relative step of the finite differences (``h_i = step |p_i|``,
-        or ``step`` when ``p_i = 0``), used by ``"direct-fd"`` and the difference methods.
-    refine : int
-        With a method string: iterative-refinement sweeps of the direct solve.
     store : "auto", "all" or tuple of {"q", "v", "a", "lam"}
         Direct methods: the sensitivity histories kept for every step, (n_t, ..., n_x) each
         (the others keep only the two levels the time stepping needs). ``"auto"`` keeps those
@@ -232,27 +197,34 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     SensitivityError
         Unknown method, unknown or unused design variable, structure-changing variable,
         response that is not complex-safe.
+    Interrupted
+        Ctrl-C: ``error.result`` holds the primal result so far (or none, if the primal had
+        not started), ``error.sensitivity`` the analysis so far.
     """
-    strategy = resolve(method, step, refine)
+    strategy = resolve(method)
     names = list(p0) if variables is None else list(variables)
     _check_inputs(p0, names, responses, store)
     settings = Settings.of(settings, **options)
     p0 = {k: float(v) for k, v in p0.items()}
 
     t_start = _time.perf_counter()
-    sys0 = compile_model(call_build(build, p0, "at the nominal design"), record=True)
-    steps = relative_steps(p0, names, getattr(strategy, "step", step))
-    setup = Setup(sys0, settings, build, p0, names, None, dict(responses), store, progress,
-                  steps)
-    if isinstance(strategy, Auto):
-        strategy = strategy.choose(setup)
-    # the adjoint needs the perturbed designs only after the primal: on two or more cores
-    # they compile on a thread meanwhile (perturb.ComplexDesigns)
-    background = getattr(strategy, "overlaps_designs", False) and (os.cpu_count() or 1) > 1
-    setup.designs = ComplexDesigns(build, p0, names, sys0, settings.t_end,
-                                   background=background)
+    sys0 = compile_model(call_build(build, p0, "at the nominal design"))
+    setup = Setup(sys0, settings, build, p0, names, dict(responses), store, progress)
+    strategy = strategy.choose(setup)
+    steps = strategy.steps(setup) if isinstance(strategy, FiniteDifference) else {}
     t_setup = _time.perf_counter() - t_start
-    run = strategy.run(setup)
+    try:
+        run = strategy.run(setup)
+    except KeyboardInterrupt as err:
+        partial = SensitivityResult(method=strategy.name, variables=names,
+                                    result=getattr(err, "result", None), values={},
+                                    gradients={}, design=dict(p0))
+        stop = Interrupted(f"sensitivities interrupted ({strategy.name}): "
+                           f"{err if str(err) else 'by the user'}",
+                           time=getattr(err, "time", None), step=getattr(err, "step", None),
+                           result=getattr(err, "result", None))
+        stop.sensitivity = partial
+        raise stop from err
     run.timing["setup"] = t_setup
 
     t_resp = _time.perf_counter()

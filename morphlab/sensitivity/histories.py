@@ -15,7 +15,7 @@ from ..compile import System
 from ..errors import SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
-from .perturb import CS_STEP
+from .designs import CS_STEP
 
 HISTORIES = ("q", "v", "a", "lam")
 

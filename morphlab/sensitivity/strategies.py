@@ -1,65 +1,74 @@
 """The sensitivity methods as strategy objects that share the primal time loop.
 
-Each strategy is a small frozen dataclass of its options with one ``run``: it gets the nominal
-system, the settings, the design and the perturbed designs (:class:`Setup`) and returns a
-:class:`Run` — the primal result, one perturbed result per variable over which the responses are
-differentiated (:meth:`column`), the kept sensitivity histories, timings and statistics. The
-strings of :func:`morphlab.sensitivities` are aliases (:func:`resolve`).
+Every method is a :class:`Strategy`: a small frozen dataclass of its options with one
+:meth:`~Strategy.run`, which gets the nominal system, the settings, the design and the
+responses (:class:`Setup`) and returns a :class:`Run` — the primal result, one perturbed result
+per variable over which the responses are differentiated (:meth:`~Strategy.column`), the kept
+sensitivity histories, timings and statistics (or the responses' values and gradients
+themselves). :func:`morphlab.sensitivities` takes any strategy, a user's subclass included; its
+method strings are aliases of the default strategies (:func:`resolve`).
 
-* :class:`Direct`: direct differentiation reusing the primal's factorizations; its partial
+* :class:`Direct`: direct differentiation with the primal's factorizations; its partial
   derivatives by complex step (exact) or, ``partials="forward-difference"``, by the paper's
   semi-analytical forward difference (``"direct-fd"``);
+* :class:`Adjoint`: the discrete adjoint, one backward sweep for all variables;
+* :class:`Auto`: whichever of the two costs less for the set-up (the default);
 * :class:`ComplexStep`: the whole run in complex arithmetic per variable, the reference;
 * :class:`FiniteDifference`: forward or central differences of whole runs.
 """
 
 from __future__ import annotations
 
+import abc
 import time as _time
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
 from ..compile import System
+from ..compile.system import time_table
 from ..errors import SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint import adjoint_run
+from .designs import CS_STEP, changes, compile_perturbed, pseudo_data, relative_steps
 from .direct import direct_run
 from .histories import HISTORIES, to_store
-from .perturb import (
-    CS_STEP,
-    ComplexDesigns,
-    pseudo_load_data,
-    relative_steps,
-    shifted_systems,
-)
 
 
 @dataclass
 class Setup:
     """What every strategy starts from: the nominal system, the settings, the parametric
-    model and design, the variables, their complex-step systems (``designs``, perhaps still
-    compiling on a thread: :class:`~morphlab.sensitivity.perturb.ComplexDesigns`), the
-    responses and the histories to keep (``store``)."""
+    model and design, the variables, the responses and the histories to keep (``store``).
+    The complex-step changes of the variables are formed once, when a strategy first asks
+    (:attr:`complex_changes`)."""
 
     sys0: System
     settings: Settings
     build: object
     p0: dict
     names: list
-    designs: ComplexDesigns | None
     responses: dict
     store: object = "auto"
     progress: bool = False
-    steps: dict = field(default_factory=dict)
+
+    @property
+    def times(self) -> np.ndarray:
+        s = self.settings
+        return s.t_start + s.h * np.arange(s.n_steps + 1)
+
+    @cached_property
+    def complex_changes(self) -> list:
+        """The complex-step :class:`~morphlab.sensitivity.designs.Change` of every variable
+        (its perturbed system included)."""
+        return changes(self.build, self.p0, self.names, self.sys0, self.times)
 
     @property
     def complex_systems(self) -> list:
-        """The complex-step systems of the variables (waits for a background compile)."""
-        return self.designs.result()
+        return [ch.system for ch in self.complex_changes]
 
 
 class Run(NamedTuple):
@@ -74,6 +83,34 @@ class Run(NamedTuple):
     stats: dict
     values: dict | None = None
     gradients: dict | None = None
+
+
+class Strategy(abc.ABC):
+    """A sensitivity method (module docstring). Subclasses set :attr:`name` and
+    :attr:`complex_results` and implement :meth:`run`; :meth:`choose` lets a strategy pick
+    another for a set-up (:class:`Auto`), :meth:`column` differentiates a response over a
+    perturbed result and :meth:`primal_solves` is what one gradient costs in primal runs
+    (a study's budget counts it)."""
+
+    name: str = "strategy"
+    #: Are the perturbed results complex (responses differentiated by complex step)?
+    complex_results: bool = False
+
+    def choose(self, setup: Setup) -> Strategy:
+        """The strategy that runs for ``setup`` (itself, by default)."""
+        return self
+
+    @abc.abstractmethod
+    def run(self, setup: Setup) -> Run:
+        """The primal run and what the responses are differentiated over."""
+
+    def column(self, fn, base: Result, pert, step):
+        """``d fn / d p_i`` from the perturbed result ``pert`` of variable ``i``."""
+        return np.imag(fn(pert)) / CS_STEP
+
+    def primal_solves(self, n_x: int) -> int:
+        """How many primal runs a gradient of ``n_x`` variables takes."""
+        return 1
 
 
 def _timed_runs(setup: Setup, systems_per_variable) -> Run:
@@ -92,35 +129,41 @@ def _timed_runs(setup: Setup, systems_per_variable) -> Run:
     return Run(res0, perturbed, {}, timing, {"n_factorizations": nfac})
 
 
+def _check_step(step) -> None:
+    if not (isinstance(step, float) and 0 < step < 1):
+        raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
+
+
+def _check_refine(owner: str, refine) -> None:
+    if not (isinstance(refine, int) and not isinstance(refine, bool) and refine >= 0):
+        raise SensitivityError(f"{owner}: refine must be an integer >= 0, got {refine!r}")
+
+
 @dataclass(frozen=True)
-class Direct:
-    """Direct differentiation (``docs/theory.md`` §6).
+class Direct(Strategy):
+    """Direct differentiation (``docs/theory.md`` §6; :mod:`morphlab.sensitivity.direct`).
 
     Parameters
     ----------
     partials : {"complex-step", "forward-difference"}
-        How the explicit partial derivatives of the residual are formed.
+        How the explicit partial derivatives of the residual are formed (where the residual
+        is not linear in the data a variable changes).
     step : float
         Relative step of the forward-difference partials.
+    reuse : bool
+        Solve with the primal's last Newton matrix and its ``Dq``, ``Dv`` (no matrix formed;
+        relative error of the order of the Newton tolerance); False forms them at the
+        converged state and refines (exact to round-off).
     refine : int
-        Iterative-refinement sweeps against the exact converged matrix (each contracts the
-        error by O(last Newton correction) <= 1e-10: one is enough).
-    refine_tol : float
-        Refine only where the last Newton position correction exceeds this (relative to the
-        model size): below it the lagged factorization's O(|dz|) error is under the accuracy
-        the sensitivities are verified to.
-    block_bytes : int
-        Memory of the converged steps and factorizations kept before their sensitivities are
-        solved as one block (the results do not depend on it).
+        Refinement sweeps of the exact variant.
     """
 
     partials: str = "complex-step"
     step: float = 1e-6
+    reuse: bool = True
     refine: int = 1
-    refine_tol: float = 1e-12
-    block_bytes: int = 64 * 2**20
 
-    complex_results = True  # its perturbed results are complex: responses by complex step
+    complex_results = True
 
     @property
     def name(self) -> str:
@@ -131,31 +174,90 @@ class Direct:
             raise SensitivityError(f"Direct: partials must be 'complex-step' or "
                                    f"'forward-difference', got {self.partials!r}")
         _check_step(self.step)
-        if not (isinstance(self.refine, int) and self.refine >= 0):
-            raise SensitivityError(f"Direct: refine must be an integer >= 0, got "
-                                   f"{self.refine!r}")
+        _check_refine("Direct", self.refine)
 
     def run(self, setup: Setup) -> Run:
-        times = setup.settings.t_start + setup.settings.h * np.arange(setup.settings.n_steps + 1)
+        cs = setup.complex_changes  # the perturbed results' systems (and the partials)
+        T0 = time_table(setup.sys0, setup.times)
         if self.partials == "complex-step":
-            psys = setup.complex_systems
-            pert = np.full(len(setup.names), 1j * CS_STEP)
+            chs, pert = cs, np.full(len(setup.names), 1j * CS_STEP)
         else:
             steps = relative_steps(setup.p0, setup.names, self.step)
-            psys = shifted_systems(setup.build, setup.p0, setup.names, setup.sys0, steps)
+            chs = changes(setup.build, setup.p0, setup.names, setup.sys0, setup.times, steps)
             pert = np.array([steps[v] for v in setup.names])
-        data = pseudo_load_data(setup.sys0, psys, pert, times)
+        ps = pseudo_data(setup.sys0, chs, pert, T0)
+        dq0 = np.stack([ch.dq0 for ch in chs], axis=1)
+        dv0 = np.stack([ch.dv0 for ch in chs], axis=1)
         kept = to_store(setup.store, setup.responses, setup.sys0, setup.settings)
-        return Run(*direct_run(setup.sys0, setup.settings, setup.complex_systems, data, kept,
-                               refine=self.refine, refine_tol=self.refine_tol,
-                               block_bytes=self.block_bytes, progress=setup.progress))
-
-    def column(self, fn, base: Result, pert, step):
-        return np.imag(fn(pert)) / CS_STEP
+        return Run(*direct_run(setup.sys0, setup.settings, setup.complex_systems, ps, dq0, dv0,
+                               kept, reuse=self.reuse, refine=self.refine,
+                               progress=setup.progress))
 
 
 @dataclass(frozen=True)
-class ComplexStep:
+class Adjoint(Strategy):
+    """The discrete adjoint of the time loop (:mod:`morphlab.sensitivity.adjoint`): one
+    backward sweep for all responses. Every response needs a ``vjp`` (the factories of
+    :mod:`morphlab.responses` have one).
+
+    Parameters
+    ----------
+    reuse, refine :
+        As for :class:`Direct`, for the transposed solves.
+    memory : int
+        Bytes of the primal's record the sweep reads (factors, matrices, states); a longer
+        run keeps checkpoints instead and recomputes each segment of steps once more.
+    """
+
+    reuse: bool = True
+    refine: int = 1
+    memory: int = 2**30
+
+    name = "adjoint"
+
+    def __post_init__(self):
+        _check_refine("Adjoint", self.refine)
+        if not (isinstance(self.memory, int) and self.memory > 0):
+            raise SensitivityError(f"Adjoint: memory must be a positive integer of bytes, got "
+                                   f"{self.memory!r}")
+
+    def run(self, setup: Setup) -> Run:
+        cs = setup.complex_changes
+        T0 = time_table(setup.sys0, setup.times)
+        ps = pseudo_data(setup.sys0, cs, np.full(len(setup.names), 1j * CS_STEP), T0)
+        dq0 = np.stack([ch.dq0 for ch in cs], axis=1)
+        dv0 = np.stack([ch.dv0 for ch in cs], axis=1)
+        res0, values, gradients, timing, stats = adjoint_run(
+            setup.sys0, setup.settings, setup.responses, ps, dq0, dv0, setup.complex_systems,
+            reuse=self.reuse, refine=self.refine, memory=self.memory, progress=setup.progress)
+        return Run(res0, [], {}, timing, stats, values, gradients)
+
+
+@dataclass(frozen=True)
+class Auto(Strategy):
+    """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
+    response has a ``vjp`` and there are more than ``crossover`` design variables per response
+    (the direct method's cost grows with the variables, the adjoint's with the responses;
+    the crossover is measured, BENCHMARKS.md)."""
+
+    crossover: float = 1.0
+    direct: Direct = field(default_factory=Direct)
+    adjoint: Adjoint = field(default_factory=Adjoint)
+
+    name = "auto"
+
+    def choose(self, setup: Setup) -> Strategy:
+        has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
+        if has_vjp and len(setup.names) > self.crossover * len(setup.responses):
+            return self.adjoint
+        return self.direct
+
+    def run(self, setup: Setup) -> Run:
+        return self.choose(setup).run(setup)
+
+
+@dataclass(frozen=True)
+class ComplexStep(Strategy):
     """Every variable's whole run in complex arithmetic with ``p + i h e_i``: no truncation
     error, the reference the other methods are verified against."""
 
@@ -165,19 +267,17 @@ class ComplexStep:
     def run(self, setup: Setup) -> Run:
         return _timed_runs(setup, [([s], 1) for s in setup.complex_systems])
 
-    def column(self, fn, base: Result, pert, step):
-        return np.imag(fn(pert)) / CS_STEP
+    def primal_solves(self, n_x: int) -> int:
+        return n_x + 1
 
 
 @dataclass(frozen=True)
-class FiniteDifference:
+class FiniteDifference(Strategy):
     """Finite differences of whole runs: ``kind="forward"`` (n_x + 1 runs) or ``"central"``
     (2 n_x + 1), relative steps ``step |p_i|``."""
 
     kind: str = "forward"
     step: float = 1e-6
-
-    complex_results = False
 
     def __post_init__(self):
         if self.kind not in ("forward", "central"):
@@ -189,12 +289,15 @@ class FiniteDifference:
     def name(self) -> str:
         return f"{self.kind}-difference"
 
+    def steps(self, setup: Setup) -> dict:
+        return relative_steps(setup.p0, setup.names, self.step)
+
     def run(self, setup: Setup) -> Run:
-        steps = setup.steps
+        steps = self.steps(setup)
         signs = (1.0,) if self.kind == "forward" else (1.0, -1.0)
-        systems = [shifted_systems(setup.build, setup.p0, setup.names, setup.sys0, steps, s)
-                   for s in signs]
-        return _timed_runs(setup, [(list(per), 0) for per in zip(*systems)])
+        per = [[compile_perturbed(setup.build, setup.p0, v, s * steps[v], setup.sys0)
+                for s in signs] for v in setup.names]
+        return _timed_runs(setup, [(systems, 0) for systems in per])
 
     def column(self, fn, base: Result, pert, step):
         if self.kind == "forward":
@@ -202,102 +305,27 @@ class FiniteDifference:
         plus, minus = pert
         return (np.asarray(fn(plus)) - np.asarray(fn(minus))) / (2.0 * step)
 
-
-@dataclass(frozen=True)
-class Adjoint:
-    """The discrete adjoint of the time loop (:mod:`morphlab.sensitivity.adjoint`): one
-    backward sweep for all responses, the variables entering only through the derivatives of
-    the compiled data. Every response needs a ``vjp`` (the factories of
-    :mod:`morphlab.responses` have one).
-
-    Parameters
-    ----------
-    refine, refine_tol :
-        As for :class:`Direct`: refinement of the transposed solves against the exact
-        converged matrix.
-    memory : int
-        Bytes of converged states and factorizations kept for the backward sweep; a longer
-        run keeps checkpoints instead and recomputes each segment of steps once more.
-    """
-
-    refine: int = 1
-    refine_tol: float = 1e-12
-    memory: int = 2**30
-
-    name = "adjoint"
-    complex_results = False
-
-    #: The perturbed designs may compile on a thread during the primal run (they are first
-    #: needed by the backward sweep).
-    overlaps_designs = True
-
-    def run(self, setup: Setup) -> Run:
-        times = setup.settings.t_start + setup.settings.h * np.arange(setup.settings.n_steps + 1)
-
-        def data():
-            return pseudo_load_data(setup.sys0, setup.complex_systems,
-                                    np.full(len(setup.names), 1j * CS_STEP), times)
-
-        res0, values, gradients, timing, stats = adjoint_run(
-            setup.sys0, setup.settings, setup.responses, setup.designs, data,
-            refine=self.refine, refine_tol=self.refine_tol, memory=self.memory,
-            progress=setup.progress)
-        return Run(res0, [], {}, timing, stats, values, gradients)
-
-
-
-@dataclass(frozen=True)
-class Auto:
-    """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
-    response has a ``vjp`` and there are more than ``crossover`` design variables per response
-    (its cost grows with the responses, the direct method's with the variables; the crossover
-    is measured in BENCHMARKS.md, "Cost against the number of variables")."""
-
-    crossover: float = 1.0
-
-    complex_results = False
-
-    def choose(self, setup: Setup):
-        """The strategy for this set-up."""
-        has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
-        if has_vjp and len(setup.names) > self.crossover * len(setup.responses):
-            return Adjoint()
-        return Direct()
-
-    def run(self, setup: Setup) -> Run:
-        raise SensitivityError("Auto chooses a strategy first (Auto.choose)")  # pragma: no cover
-
-
-def _check_step(step) -> None:
-    if not (isinstance(step, float) and 0 < step < 1):
-        raise SensitivityError(f"step must be a float in (0, 1), got {step!r}")
+    def primal_solves(self, n_x: int) -> int:
+        return n_x + 1 if self.kind == "forward" else 2 * n_x + 1
 
 
 #: The method strings of :func:`morphlab.sensitivities` and the strategies they stand for.
-ALIASES = ("auto", "direct", "direct-fd", "adjoint", "complex-step", "forward-difference",
-           "central-difference")
+ALIASES = {"auto": Auto(), "direct": Direct(), "direct-fd": Direct(
+    partials="forward-difference"), "adjoint": Adjoint(), "complex-step": ComplexStep(),
+    "forward-difference": FiniteDifference("forward"),
+    "central-difference": FiniteDifference("central")}
 
 
-def resolve(method, step: float = 1e-6, refine: int = 1):
-    """A strategy object for ``method`` (a strategy, or one of :data:`ALIASES`; ``step`` and
-    ``refine`` configure the aliases)."""
-    if isinstance(method, (Direct, Adjoint, ComplexStep, FiniteDifference, Auto)):
+def resolve(method) -> Strategy:
+    """A strategy object for ``method`` (a :class:`Strategy`, or one of :data:`ALIASES`)."""
+    if isinstance(method, Strategy):
         return method
-    if method == "auto":
-        return Auto()
-    if method == "direct":
-        return Direct(refine=refine)
-    if method == "adjoint":
-        return Adjoint(refine=refine)
-    if method == "direct-fd":
-        return Direct(partials="forward-difference", step=step, refine=refine)
-    if method == "complex-step":
-        return ComplexStep()
-    if method in ("forward-difference", "central-difference"):
-        return FiniteDifference(method.split("-")[0], step)
+    if isinstance(method, str) and method in ALIASES:
+        return ALIASES[method]
     raise SensitivityError(f"unknown method {method!r}; choose one of {', '.join(ALIASES)} or "
-                           "a strategy (Direct(), ComplexStep(), FiniteDifference())")
+                           "a Strategy object (Direct(...), Adjoint(...), Auto(...), "
+                           "ComplexStep(), FiniteDifference(...), or a subclass of Strategy)")
 
 
 __all__ = ["ALIASES", "Adjoint", "Auto", "ComplexStep", "Direct", "FiniteDifference",
-           "HISTORIES", "Run", "Setup", "resolve"]
+           "HISTORIES", "Run", "Setup", "Strategy", "resolve"]

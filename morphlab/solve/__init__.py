@@ -3,10 +3,10 @@ on the sparse saddle-point system), factorizations of the step matrix, the time 
 statics."""
 
 from .scheme import GeneralizedAlpha
-from .settings import Settings, State
+from .settings import Settings, State, StaticSettings
 from .statics import static
 from .stepper import Stepper
-from .timeloop import StepInfo, integrate, simulate
+from .timeloop import StepHook, StepInfo, integrate, simulate
 
-__all__ = ["GeneralizedAlpha", "Settings", "State", "StepInfo", "Stepper", "integrate",
-           "simulate", "static"]
+__all__ = ["GeneralizedAlpha", "Settings", "State", "StaticSettings", "StepHook", "StepInfo",
+           "Stepper", "integrate", "simulate", "static"]

@@ -1,8 +1,9 @@
 """Factorizations of the step matrix: one fixed CSC pattern, many value sets, one interface.
 
 Every factorization is a :class:`Factor`: ``solve(b)``, ``solve_transposed(b)`` (the adjoint
-sweep), ``nbytes``, and for the compiled kernels its ``group`` and ``kernel_args()``. Three
-kinds exist, private to this module:
+sweep), ``nbytes``, and for the compiled kernels ``compiled`` and ``arrays()`` (the
+:class:`~morphlab.kernels.newton.Factors` they solve with). Three kinds exist, private to this
+module:
 
 * a dense LU with partial pivoting of small matrices (at most ``dense_max`` unknowns,
   :mod:`morphlab.kernels.dense`), where a sparse factorization's set-up costs more than the
@@ -15,7 +16,7 @@ kinds exist, private to this module:
 
 :class:`StepFactorization` decides which kind factors the next matrix; the Newton loop and the
 sensitivity strategies see :class:`Factor` objects only, and the compiled loops the arrays
-:meth:`StepFactorization.loop_arrays` and :func:`stacked_arrays` give them.
+:meth:`StepFactorization.loop_arrays` gives them.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..kernels.dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
+from ..kernels.newton import Factors
 from ..kernels.sparse_lu import refactor, symbolic
 from ..kernels.sparse_lu import solve as sparse_solve
 from ..kernels.sparse_lu import solve_transposed as sparse_solve_transposed
@@ -41,15 +43,13 @@ class Factor:
     """A factorization of one step matrix ``A`` (n, n).
 
     ``solve(b)`` returns ``A^-1 b`` and ``solve_transposed(b)`` ``A^-T b`` for ``b`` (n,) or
-    (n, m), real or complex; ``nbytes`` is the memory the factorization keeps. Factors of one
-    ``group`` (not None) can be solved in one compiled call: their ``kernel_args()`` stacked
-    by :func:`stacked_arrays` are what :func:`morphlab.kernels.newton.solve_factored` reads;
-    consecutive factors of one ``chunk`` (not None) are stacked without a copy.
+    (n, m), real or complex; ``nbytes`` is the memory the factorization keeps. A ``compiled``
+    factor's arrays (:meth:`arrays`) are what the compiled kernels solve with
+    (:func:`morphlab.kernels.newton.solve_factored`).
     """
 
     __slots__ = ()
-    group = None
-    chunk = None
+    compiled = False
 
     def solve(self, b):  # pragma: no cover - interface
         raise NotImplementedError
@@ -61,9 +61,9 @@ class Factor:
     def nbytes(self) -> int:  # pragma: no cover - interface
         raise NotImplementedError
 
-    def kernel_args(self) -> tuple:  # pragma: no cover - interface
-        """``(LU, piv, Lx, Ux, Ud, pattern)`` of :func:`morphlab.kernels.newton.solve_factored`
-        (the other kind's arrays empty, ``pattern`` None for a dense factor)."""
+    def arrays(self) -> Factors:  # pragma: no cover - interface
+        """The :class:`~morphlab.kernels.newton.Factors` of a compiled factor (the other
+        kind's arrays empty; ``order``, ``pattern`` None for a dense factor)."""
         raise NotImplementedError
 
 
@@ -73,25 +73,11 @@ def _columns(b, dtype):
     return np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1), b.shape
 
 
-def empty_loop_arrays(dtype, dense: bool) -> tuple:
-    """:meth:`StepFactorization.loop_arrays` of either kind with no entries: the types the
-    compiled Newton loop and its factor and solve kernels take for ``dtype``."""
-    none = np.zeros(0, dtype=dtype)
-    if dense:
-        return np.zeros((0, 0), dtype=dtype), np.zeros(0, dtype=np.int64), none, none, none, \
-            None, None
-    idx = np.zeros(0, dtype=np.int64)
-    real = np.zeros(0)
-    return (np.zeros((0, 0), dtype=dtype), idx, none, none, none,
-            (idx, real, idx, idx, idx, np.zeros(0, dtype=dtype)),
-            (idx, idx, idx, idx, idx, real, idx, real))
-
-
 class _DenseLU(Factor):
     """Dense ``P A = L U`` (:mod:`morphlab.kernels.dense`)."""
 
     __slots__ = ("LU", "piv")
-    group = "dense"
+    compiled = True
 
     def __init__(self, LU, piv):
         self.LU = LU
@@ -111,9 +97,9 @@ class _DenseLU(Factor):
         lu_solve_transposed(self.LU, self.piv, x)
         return x.reshape(shape)
 
-    def kernel_args(self) -> tuple:
+    def arrays(self) -> Factors:
         empty = np.zeros(0, dtype=self.LU.dtype)
-        return self.LU, self.piv, empty, empty, empty, None
+        return Factors(self.LU, self.piv, empty, empty, empty, None, None)
 
 
 class _RowOrder:
@@ -145,9 +131,8 @@ class _RowOrder:
 
     def empty_factors(self) -> tuple:
         """Fresh ``(Lx, Ux, Ud)`` for one factorization: the next rows of a chunk of
-        :data:`CHUNK_BYTES`. Factorizations in a row get consecutive rows, so the factors the
-        sensitivity methods keep are stacked without a copy (:func:`stacked_arrays`); a chunk
-        is freed with the last factor in it. ``last_row``: the row of the factors returned."""
+        :data:`CHUNK_BYTES` (a chunk is freed with the last factor in it). ``last_row``: the
+        row of the factors returned."""
         if self._chunk is None or self._next == self._chunk[0].shape[0]:
             _, Li, _, Ui = self.ready().patterns
             dt = self.work.dtype
@@ -175,6 +160,7 @@ class _SparseLU(Factor):
     ``Lx, Ux, Ud`` are row ``row`` of a chunk (:meth:`_RowOrder.empty_factors`)."""
 
     __slots__ = ("order", "Lx", "Ux", "Ud", "row")
+    compiled = True
 
     def __init__(self, order: _RowOrder, Lx, Ux, Ud, row: int):
         self.order = order
@@ -182,15 +168,6 @@ class _SparseLU(Factor):
         self.Ux = Ux
         self.Ud = Ud
         self.row = row
-
-    @property
-    def group(self):
-        return self.order
-
-    @property
-    def chunk(self) -> int | None:
-        """Identity of the chunk the values are rows of (:meth:`_RowOrder.empty_factors`)."""
-        return id(self.Lx.base)
 
     @property
     def nbytes(self) -> int:
@@ -210,19 +187,18 @@ class _SparseLU(Factor):
     def solve_transposed(self, b):
         return self._apply(sparse_solve_transposed, b)
 
-    def kernel_args(self) -> tuple:
+    def arrays(self) -> Factors:
         dt = self.Lx.dtype
-        return (np.zeros((0, 0), dt), np.zeros(0, np.int64), self.Lx, self.Ux, self.Ud,
-                self.order.solve_arrays)
+        return Factors(np.zeros((0, 0), dt), np.zeros(0, np.int64), self.Lx, self.Ux, self.Ud,
+                       self.order.order_arrays, self.order.solve_arrays)
 
 
 class _SuperLUFactor(Factor):
     """SuperLU's LU of ``D B D`` with ``B = A[q][:, q]`` (``q is None``: ``B = A``) solving
     ``A x = b``: ``x[q] = D (D B D)^-1 D b[q]``, and ``A^T x = b`` with the transposed
-    factors. No compiled kernel reads it (``group`` None)."""
+    factors. No compiled kernel reads it."""
 
     __slots__ = ("lu", "q", "d")
-    group = None
 
     def __init__(self, lu, q, d):
         self.lu = lu
@@ -240,9 +216,6 @@ class _SuperLUFactor(Factor):
 
     def solve_transposed(self, b):
         return self._apply(b, "T")
-
-    def kernel_args(self) -> tuple:
-        raise TypeError("SuperLU's own factors are solved from Python (group None)")
 
     def _apply(self, b, trans):
         d = self.d.reshape((-1,) + (1,) * (b.ndim - 1))
@@ -263,30 +236,6 @@ class _SuperLUFactor(Factor):
                     + 1j * self.lu.solve(np.ascontiguousarray(b.imag), trans=trans))
 
 
-def stacked_arrays(factors: list[Factor]) -> tuple:
-    """``(LU, piv, Lx, Ux, Ud, pattern)`` of K factors of one group, stacked along a leading
-    axis K (the other kind's stacks hold K empty factors; ``pattern`` None: dense): what
-    :func:`morphlab.kernels.direct.block_recursion` reads."""
-    args = [f.kernel_args() for f in factors]
-    rows = _chunk_rows(factors)
-    if rows is None:
-        stacks = tuple(np.stack([a[k] for a in args]) for k in range(5))
-    else:  # consecutive rows of one chunk: views of it
-        f = factors[0]
-        stacks = (np.stack([a[0] for a in args]), np.stack([a[1] for a in args]),
-                  f.Lx.base[rows], f.Ux.base[rows], f.Ud.base[rows])
-    return (*stacks, args[0][5])
-
-
-def _chunk_rows(factors: list[Factor]) -> slice | None:
-    """The rows of their chunk that ``factors`` are, if they are consecutive rows of one."""
-    first = factors[0]
-    if first.chunk is None or not all(
-            f.chunk == first.chunk and f.row == first.row + k for k, f in enumerate(factors)):
-        return None
-    return slice(first.row, first.row + len(factors))
-
-
 class StepFactorization:
     """Factor matrices that share the CSC pattern ``(indices, indptr)`` of size ``n``.
 
@@ -301,7 +250,9 @@ class StepFactorization:
       poor source of row pivots for the step matrices);
     * every later ``B`` by the compiled refactorization with that row order. A pivot below
       SuperLU's own threshold (:data:`~morphlab.solve.superlu.PIVOT_THRESHOLD` of the largest
-      entry under it) sends that matrix back to SuperLU, which chooses a new row order.
+      entry under it) sends that matrix back to SuperLU, which chooses a new row order, and
+      the matrix is then refactored with it (a compiled factor, as the sensitivity runs
+      need; SuperLU's own if even that fails).
 
     Matrices are scaled symmetrically (``D A D``, :func:`column_scaling`) before pivoting.
     A matrix without a usable pivot raises ``RuntimeError`` (the caller names the unknown).
@@ -353,30 +304,34 @@ class StepFactorization:
         d = column_scaling(b_data, b_indptr)
         pair = d[b_indices] * d[b_cols]
         lu = self._natural(b_data * pair)
+        first = self._rows is None
         self._rows = _RowOrder(lu.perm_r, d, pair, gather, b_indices, b_indptr, q, self.dtype)
         self.n_orders += 1
+        if not first:  # a compiled factor of this matrix with the new order, where it serves
+            again = self._rows.ready().factor(data, PIVOT_THRESHOLD)
+            if again is not None:
+                return again
         return _SuperLUFactor(lu, q, d)
 
     # ---- the compiled Newton loop (morphlab.kernels.newton.newton_loop)
-    def loop_arrays(self) -> tuple:
-        """Fresh factor arrays for one compiled Newton solve once :attr:`settled`:
-        ``(LU, piv, Lx, Ux, Ud, order, pattern)`` (dense: ``order``, ``pattern`` None and
-        ``Lx, Ux, Ud`` empty; sparse: ``LU``, ``piv`` empty)."""
+    def loop_arrays(self) -> Factors:
+        """Fresh factor arrays for a compiled Newton solve once :attr:`settled` (dense:
+        ``order``, ``pattern`` None and ``Lx, Ux, Ud`` empty; sparse: ``LU``, ``piv``
+        empty)."""
         dt = self.dtype
         if self.dense:
             none = np.zeros(0, dtype=dt)
-            return (np.empty((self.n, self.n), dtype=dt), np.empty(self.n, dtype=np.int64),
-                    none, none, none, None, None)
+            return Factors(np.empty((self.n, self.n), dtype=dt),
+                           np.empty(self.n, dtype=np.int64), none, none, none, None, None)
         rows = self._rows.ready()
-        return (np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64), *rows.empty_factors(),
-                rows.order_arrays, rows.solve_arrays)
+        return Factors(np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64),
+                       *rows.empty_factors(), rows.order_arrays, rows.solve_arrays)
 
-    def factor_of(self, arrays: tuple) -> Factor:
+    def factor_of(self, arrays: Factors) -> Factor:
         """The :class:`Factor` the compiled loop left in ``arrays`` (:meth:`loop_arrays`)."""
-        LU, piv, Lx, Ux, Ud, _, _ = arrays
         if self.dense:
-            return _DenseLU(LU, piv)
-        return _SparseLU(self._rows, Lx, Ux, Ud, self._rows.last_row)
+            return _DenseLU(arrays.LU, arrays.piv)
+        return _SparseLU(self._rows, arrays.Lx, arrays.Ux, arrays.Ud, self._rows.last_row)
 
     @property
     def row_order(self) -> _RowOrder | None:

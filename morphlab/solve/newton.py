@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compile.system import System, SystemArrays, TimeArrays
+from ..compile.system import System
 from ..errors import ConvergenceError, NonFiniteError, SingularMatrixError
-from ..kernels.assemble import apply_correction, step_matrix, step_residual
+from ..kernels.assemble import Step, apply_correction, matrix, residual
+from ..kernels.ffrf import scratch
 from ..kernels.newton import (
     CONVERGED,
     NONFINITE_CORRECTION,
@@ -27,10 +28,13 @@ from ..kernels.newton import (
     NOT_CONVERGED,
     PIVOT_REFUSED,
     SINGULAR,
-    newton_loop,
+    Csc,
+    Options,
+    Work,
 )
+from ..kernels.system import Parts, Times
+from ..kernels.types import Level
 from .linalg import Factor, StepFactorization
-from .scheme import StepCoefficients
 from .superlu import PIVOT_THRESHOLD
 
 
@@ -38,23 +42,19 @@ from .superlu import PIVOT_THRESHOLD
 class StepProblem:
     """The equations of one Newton solve.
 
-    ``system``: whose equations they are (their names in messages); ``S``: its kernel arrays;
-    ``qh, vh`` (n_dof,): the predictors; ``coef``: the step coefficients (``coef.h == 0``: the
-    linear initial solve); ``R_hist`` (n,): the constant old-level share of the residual;
-    ``ta``: the time data at the new level; ``scale``: of the constraint rows and multipliers;
-    ``b0, b1``: the stabilization; ``t``, ``step``: where, for messages.
+    ``system``: whose equations they are (their names in messages); ``M``, ``T``, ``P``: its
+    kernel arrays, the time values and the parts evaluated (all); ``s``: the step's
+    :class:`~morphlab.kernels.assemble.Step` (predictors, old-level share, coefficients, time
+    index); ``linear``: the initial solve (one iteration is exact); ``t``, ``step``: where, for
+    messages.
     """
 
     system: System
-    S: SystemArrays
-    qh: np.ndarray
-    vh: np.ndarray
-    coef: StepCoefficients
-    R_hist: np.ndarray
-    ta: TimeArrays
-    scale: float
-    b0: float
-    b1: float
+    M: tuple
+    T: Times
+    P: Parts
+    s: Step
+    linear: bool
     t: float
     step: int
 
@@ -63,28 +63,31 @@ class StepProblem:
         """The name of each equation / unknown."""
         return self.system.unknown_names
 
-    def residual(self, z, n_dof: int, R=None):
-        """``(R, |R|)`` at ``z`` (``|R|`` NaN or Inf if an entry is)."""
-        if R is None:
-            dt = np.result_type(z.dtype, self.qh.dtype, self.R_hist.dtype)
-            R = np.empty(z.shape[0], dtype=dt)
-        ssq = step_residual(*self.residual_args(z, n_dof, R))
+    @property
+    def n_dof(self) -> int:
+        return self.system.n_dof
+
+    def level(self, z) -> Level:
+        """The state at the unknowns ``z``: ``q = q_hat + bh2 a``, ``q' = v_hat + gh a``,
+        ``lam = scale z_lam`` (as :func:`morphlab.kernels.assemble.level`)."""
+        s, n_dof = self.s, self.n_dof
+        a = np.ascontiguousarray(z[:n_dof])
+        return Level(s.qh + s.bh2 * a, s.vh + s.gh * a, a,
+                     np.ascontiguousarray(z[n_dof:] * s.w.scale))
+
+    def residual(self, z, W, R=None):
+        """``(R, |R|)`` at ``z`` (``|R|`` NaN or Inf if an entry is); ``W``: the bodies'
+        scratch in ``z``'s dtype."""
+        R = np.array(self.s.R_hist, dtype=z.dtype) if R is None else R
+        residual(self.M, self.level(z), self.s.w, self.T, self.s.t, self.s.k, self.P,
+                 self.n_dof, R, W)
+        ssq = float(np.sum(R.real * R.real + R.imag * R.imag))
         return R, float(np.sqrt(ssq))
 
-    def residual_args(self, z, n_dof: int, R) -> tuple:
-        """The arguments of :func:`~morphlab.kernels.assemble.step_residual` at ``z`` into
-        ``R`` (also what ``morphlab.solve.precompile`` compiles it for)."""
-        dt = R.dtype
-        # astype(copy=False): no copies in the Newton loop when the dtypes already agree
-        return (self.S, z.astype(dt, copy=False), self.qh.astype(dt, copy=False),
-                self.vh.astype(dt, copy=False), self.coef.bh2, self.coef.gh, self.scale,
-                self.coef.arrays.w_new, self.b0, self.b1, *self.ta, n_dof,
-                self.R_hist.astype(dt, copy=False), R)
-
-    def fill(self, z, data) -> None:
-        """The exact step matrix at ``z`` into the CSC values ``data``."""
-        step_matrix(self.S, z, self.qh, self.vh, self.coef.bh2, self.coef.gh, self.scale,
-                    self.coef.arrays.w_new, self.b0, self.b1, self.ta.F, data)
+    def fill(self, z, data, W) -> None:
+        """The step matrix at ``z`` into the CSC values ``data`` (m, nnz): row 0 the Newton
+        matrix (and ``Dq``, ``Dv`` in rows 1, 2 when the step's coefficients ask)."""
+        matrix(self.M, self.level(z), self.s.w, self.T, self.s.t, self.s.k, self.s.C, data, W)
 
 
 class NewtonSolver:
@@ -101,19 +104,24 @@ class NewtonSolver:
     dense_max : int
         See :class:`morphlab.solve.linalg.StepFactorization`.
     compiled : bool
-        Use the compiled loop once the factorization has settled.
+        Let the run solve its steps in compiled chunks once the factorization has settled
+        (:mod:`morphlab.solve.timeloop`).
     polish : int
         Extra iterations after convergence (complex-step reference runs: the imaginary part
         converges one iteration behind the real part).
+    rows : int
+        Rows of the fill (1: the Newton matrix; 3: with ``Dq`` and ``Dv``, a sensitivity run).
 
     Attributes
     ----------
     n_factorizations : int
         Factorizations so far.
+    data : (rows, nnz)
+        The last fill.
     """
 
     def __init__(self, system: System, dtype, *, tol: float, max_iter: int, dense_max: int,
-                 compiled: bool = True, polish: int = 0):
+                 compiled: bool = True, polish: int = 0, rows: int = 1):
         self.system = system
         self.dtype = np.dtype(dtype)
         self.tol = tol
@@ -123,16 +131,30 @@ class NewtonSolver:
         self.n_dof = system.n_dof
         self.factorization = StepFactorization(system.indices, system.indptr, system.n,
                                                self.dtype, dense_max)
-        self.data = np.zeros(system.nnz, dtype=self.dtype)  # CSC values of the step matrix
+        self.data = np.zeros((rows, system.nnz), dtype=self.dtype)
+        self.W = scratch(system.count("flex"), np.zeros(1, dtype=self.dtype))
+        self.csc = Csc(system.indices, system.indptr)
         self.n_factorizations = 0
         self.kept: Factor | None = None  # the factorization modified Newton keeps
-        self._scratch = None  # buffers of the compiled loop, allocated on first use
+        self._work = None  # buffers of the compiled loop, allocated on first use
+
+    def options(self, linear: bool = False) -> Options:
+        """The compiled loop's :class:`~morphlab.kernels.newton.Options`."""
+        return Options(float(self.tol), int(self.max_iter), float(self.system.length_scale),
+                       int(self.polish), bool(linear), PIVOT_THRESHOLD)
+
+    def work(self) -> Work:
+        """The compiled loop's buffers (:class:`~morphlab.kernels.newton.Work`)."""
+        if self._work is None:
+            self._work = Work(np.empty(self.system.n, dtype=self.dtype), self.data, self.W,
+                              np.zeros((self.max_iter, 2)))
+        return self._work
 
     def factor(self, p: StepProblem, z) -> Factor:
         """Fill and factor the exact step matrix at ``z``."""
-        p.fill(z, self.data)
+        p.fill(z, self.data, self.W)
         try:
-            lu = self.factorization(self.data)
+            lu = self.factorization(self.data[0])
         except RuntimeError as exc:
             raise singular(p, str(exc)) from None
         self.n_factorizations += 1
@@ -140,27 +162,19 @@ class NewtonSolver:
 
     def solve(self, p: StepProblem, z) -> tuple:
         """Full Newton from ``z``: ``(z, factor, iterations, history)``, the factor taken at the
-        iterate before the final correction, ``history`` (iterations, 2) the ``(|R|,
-        correction)`` of each iteration."""
-        first, hist = 1, np.zeros((0, 2))
-        fac = self.factorization
-        if (self.compiled and fac.settled and (fac.dense or self.polish == 0)
-                and z.dtype == p.qh.dtype == p.vh.dtype == p.R_hist.dtype == self.dtype):
-            z, lu, it, hist = self._compiled(p, z)
-            if lu is not None:
-                return z, lu, it, hist
-            first = it  # a sparse pivot failed at iteration ``it``: redo it from here
+        iterate before the final correction (``data``: that fill), ``history`` (iterations,
+        2) the ``(|R|, correction)`` of each iteration."""
         L = self.system.length_scale
         err = np.inf
-        rows = list(map(tuple, hist))
-        for it in range(first, self.max_iter + 1):
+        rows = []
+        for it in range(1, self.max_iter + 1):
             z, lu, r_norm, dz_max = self._iteration(p, z, it)
-            # linear in z for the initial accelerations (h = 0): one solve is exact
-            err = 0.0 if p.coef.h == 0.0 else p.coef.bh2 * dz_max / L
+            # linear in z for the initial accelerations: one solve is exact
+            err = 0.0 if p.linear else p.s.bh2 * dz_max / L
             rows.append((r_norm, err))
             if err <= self.tol:
                 for _ in range(self.polish):
-                    R, _ = p.residual(z, self.n_dof)
+                    R, _ = p.residual(z, self.W)
                     lu = self.factor(p, z)
                     z = z + lu.solve(-R)
                 return z, lu, it, np.array(rows)
@@ -168,7 +182,7 @@ class NewtonSolver:
 
     def _iteration(self, p: StepProblem, z, it: int):
         """One iteration from ``z``: ``(z + dz, factor at z, |R(z)|, |dz_a|_max)``."""
-        R, r_norm = p.residual(z, self.n_dof)
+        R, r_norm = p.residual(z, self.W)
         if not np.isfinite(r_norm):
             raise non_finite_residual(p, R, it)
         try:
@@ -181,42 +195,29 @@ class NewtonSolver:
             raise non_finite_correction(p, z1, r_norm)
         return z1, lu, r_norm, dz_max
 
-    def _compiled(self, p: StepProblem, z):
-        """:meth:`solve` in one compiled call. Returns its tuple, or ``(z, None, it, history)``
-        when a sparse pivot failed the threshold at iteration ``it`` (``z`` the iterate whose
-        matrix it was, ``history`` the iterations before)."""
-        system, fac = self.system, self.factorization
-        if self._scratch is None:  # residual (read on failure), (|R|, err) rows
-            self._scratch = (np.empty(system.n, dtype=self.dtype), np.zeros((self.max_iter, 2)))
-        R, hist = self._scratch
-        arrays = fac.loop_arrays()  # fresh factors every step: the sensitivities keep them
-        z, it, status, bad = newton_loop(*self.loop_args(p, z, R, arrays, hist))
+    def outcome(self, p: StepProblem, z, it, status, bad, F):
+        """What a compiled Newton solve of step ``p`` returned (a run's compiled chunk
+        stopping at this step, :mod:`morphlab.kernels.steps`): :meth:`solve`'s tuple, or the
+        error it raises; ``(z, None, it, history)`` when a sparse pivot failed the threshold at
+        iteration ``it``."""
+        ws = self.work()
+        hist = ws.hist
         if status == CONVERGED:
             self.n_factorizations += it + self.polish
-            return z, fac.factor_of(arrays), it, hist[:it].copy()
+            return z, self.factorization.factor_of(F), it, hist[:it].copy()
         # no complete factorization at `it` unless the failure came after it
         self.n_factorizations += it if status in (NONFINITE_CORRECTION, NOT_CONVERGED) else it - 1
         if status == PIVOT_REFUSED:
             return z, None, it, hist[:it - 1].copy()
         r_norm = float(hist[it - 1, 0])
         if status == NONFINITE_RESIDUAL:
-            raise non_finite_residual(p, R, it)
+            raise non_finite_residual(p, ws.R, it)
         if status == SINGULAR:
             raise singular(p, "no nonzero pivot left for the column of "
-                           f"{system.unknown_names[bad]}", r_norm, R)
+                           f"{self.system.unknown_names[bad]}", r_norm, ws.R)
         if status == NONFINITE_CORRECTION:
             raise non_finite_correction(p, z, r_norm)
         raise not_converged(p, z, self, float(hist[it - 1, 1]))
-
-    def loop_args(self, p: StepProblem, z, R, arrays: tuple, hist) -> tuple:
-        """The arguments of :func:`~morphlab.kernels.newton.newton_loop` for ``p`` from ``z``:
-        residual ``R`` (n,), factor ``arrays`` (``StepFactorization.loop_arrays``), history
-        ``hist`` (max_iter, 2) (also what ``morphlab.solve.precompile`` compiles it for)."""
-        system = self.system
-        return (p.S, z, p.qh, p.vh, p.coef.bh2, p.coef.gh, p.scale, p.coef.arrays.w_new, p.b0,
-                p.b1, *p.ta, self.n_dof, p.R_hist, system.indices, system.indptr,
-                p.coef.h == 0.0, system.length_scale, self.tol, self.max_iter, self.polish, R,
-                self.data, *arrays, PIVOT_THRESHOLD, hist)
 
     def solve_modified(self, p: StepProblem, z) -> tuple:
         """Newton with the factorization kept over iterations and steps (primal runs only):
@@ -229,7 +230,7 @@ class NewtonSolver:
         hist = []
         err_prev = None
         for it in range(1, self.max_iter + 1):
-            R, r_norm = p.residual(z, self.n_dof)
+            R, r_norm = p.residual(z, self.W)
             if not np.isfinite(r_norm):
                 raise non_finite_residual(p, R, it)
             fresh = self.kept is None
@@ -240,7 +241,7 @@ class NewtonSolver:
                     err.step, err.residual, err.dominant = p.step, r_norm, dominant(p, R)
                     raise
             dz = self.kept.solve(-R)
-            err = p.coef.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
+            err = p.s.bh2 * float(np.max(np.abs(dz[: self.n_dof]))) / L
             hist.append((r_norm, err))
             if not np.isfinite(err):
                 self.kept = None
@@ -260,7 +261,7 @@ class NewtonSolver:
             if theta is not None and theta > 0.3:
                 self.kept = None
             err_prev = err
-        R, _ = p.residual(z, self.n_dof)
+        R, _ = p.residual(z, self.W)
         raise ConvergenceError(
             f"modified Newton did not converge at t={p.t:.6g} (step {p.step}) in "
             f"{self.max_iter} iterations (residual norm {np.linalg.norm(R):.3g}); dominant "
@@ -283,7 +284,7 @@ def non_finite(p: StepProblem, x, k: int = 8) -> list[str]:
 
 
 def not_converged(p: StepProblem, z, solver: NewtonSolver, err) -> ConvergenceError:
-    R, _ = p.residual(z, solver.n_dof)
+    R, _ = p.residual(z, solver.W)
     r = float(np.linalg.norm(R))
     return ConvergenceError(
         f"Newton did not converge at t={p.t:.6g} (step {p.step}) in {solver.max_iter} "

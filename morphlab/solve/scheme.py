@@ -19,6 +19,8 @@ import numpy as np
 
 from ..errors import ModelError
 from ..kernels import newmark
+from ..kernels.steps import Scheme
+from ..kernels.types import Weights
 
 
 def _is_real(x) -> bool:
@@ -137,6 +139,25 @@ def step_coefficients(scheme: str, method: GeneralizedAlpha, h: float,
         (b * h * h * af * r, (0.5 - b) * h * h - b * h * h * am * r,
          gm * h * af * r, (1 - gm) * h - gm * h * am * r),
         ((1 - af) * r, af * r, -am * r))
+
+
+def weights(w: tuple, scale: float, b0: float, b1: float) -> Weights:
+    """The kernels' :class:`~morphlab.kernels.types.Weights` of one level's weights ``w =
+    (wm, wl, wf, wcm, wcf)`` (zeros for None) and the run's constants."""
+    wm, wl, wf, wcm, wcf = (float(x) for x in (w if w is not None else (0.0,) * 5))
+    return Weights(wm, wl, wf, wcm, wcf, float(scale), float(b0), float(b1))
+
+
+def kernel_scheme(coef: StepCoefficients, scale: float, b0: float, b1: float,
+                  split: bool = False) -> Scheme:
+    """The kernels' :class:`~morphlab.kernels.steps.Scheme` of ``coef``; ``split``: the Newton
+    fill forms ``Dq`` and ``Dv`` beside the Newton matrix (a sensitivity run)."""
+    C = [[1.0, coef.bh2, coef.gh]]
+    if split:
+        C += [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    arr = coef.arrays
+    return Scheme(arr.pc, arr.upd, weights(coef.new, scale, b0, b1),
+                  weights(coef.old, scale, b0, b1), coef.old is not None, np.array(C))
 
 
 def newmark_predict(coef: StepCoefficients, q, v, a, g):

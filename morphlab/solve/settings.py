@@ -172,3 +172,46 @@ class Settings:
     def h(self) -> float:
         """The step actually used, ``(t_end - t_start) / n_steps``."""
         return (self.t_end - self.t_start) / self.n_steps
+
+
+@dataclass(frozen=True)
+class StaticSettings:
+    """Options of a static equilibrium path (:func:`morphlab.static`).
+
+    Attributes
+    ----------
+    t : float
+        Time at which loads and driving constraints are evaluated [s].
+    steps : int
+        Continuation steps: equilibria at ``t_k = k t / steps`` in turn, each from the
+        previous one (load control along the model's own profiles).
+    tol : float
+        Newton stops when the position correction is below ``tol`` times the model size.
+    max_iter : int
+        Newton iteration limit per continuation step.
+    dense_max : int
+        Linear solver (as :class:`Settings`).
+    kinematic_tol : float or None
+        Largest estimated kinematic error of a beam's floating frames accepted, relative to
+        its length (:mod:`morphlab.results.kinematics`); None: not checked.
+    """
+
+    t: float = 0.0
+    steps: int = 1
+    tol: float = 1e-10
+    max_iter: int = 30
+    dense_max: int = DENSE_MAX
+    kinematic_tol: float | None = 1e-4
+
+    @classmethod
+    def of(cls, settings: StaticSettings | None = None, **options) -> StaticSettings:
+        """``settings`` with ``options`` replaced (or new StaticSettings from ``options``);
+        unknown option names raise :class:`ModelError` naming the valid ones."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(options) - names)
+        if unknown:
+            raise ModelError(f"unknown static settings {unknown}; valid: {sorted(names)}")
+        base = settings if settings is not None else cls()
+        if not isinstance(base, cls):
+            raise ModelError(f"settings must be a StaticSettings, got {type(base).__name__}")
+        return dataclasses.replace(base, **options)

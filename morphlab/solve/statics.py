@@ -4,63 +4,57 @@ from __future__ import annotations
 
 import numbers
 import time as _time
-from functools import partial
 
 import numpy as np
 
 from ..compile import System, compile_model
+from ..compile.system import time_table
 from ..errors import ConvergenceError, ModelError, SolverError
 from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
-from . import precompile
-from .linalg import DENSE_MAX
 from .scheme import _is_real
-from .settings import Settings
+from .settings import StaticSettings
 from .stepper import Stepper
 
 
-def _check_args(steps, t, tol) -> None:
-    if not (isinstance(steps, numbers.Integral) and not isinstance(steps, (bool, np.bool_))
-            and steps >= 1):
-        raise ModelError(f"steps must be an integer >= 1, got {steps!r}")
-    if not (_is_real(t) and np.isfinite(t)):
-        raise ModelError(f"t must be a finite number, got {t!r}")
-    if not (_is_real(tol) and 0 < tol < 1):
-        raise ModelError(f"tol must be a number in (0, 1), got {tol!r}")
+def _check(s: StaticSettings) -> None:
+    if not (isinstance(s.steps, numbers.Integral) and not isinstance(s.steps, (bool, np.bool_))
+            and s.steps >= 1):
+        raise ModelError(f"steps must be an integer >= 1, got {s.steps!r}")
+    if not (_is_real(s.t) and np.isfinite(s.t)):
+        raise ModelError(f"t must be a finite number, got {s.t!r}")
+    if not (_is_real(s.tol) and 0 < s.tol < 1):
+        raise ModelError(f"tol must be a number in (0, 1), got {s.tol!r}")
 
 
-def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float = 1e-10,
-           max_iter: int = 30, q_start=None, dense_max: int = DENSE_MAX,
-           kinematic_tol: float | None = 1e-4):
+def _static_times(system: System, times: np.ndarray):
+    """The time values of the continuation, with the drives' rates zero (a static target)."""
+    T = time_table(system, times)
+    return T._replace(**{name: tt._replace(cd=np.zeros_like(tt.cd), cdd=np.zeros_like(tt.cdd))
+                         for name, tt in zip(T._fields, T)
+                         if tt is not None and hasattr(tt, "cd")})
+
+
+def static(model: Model | System, *, settings: StaticSettings | None = None, q_start=None,
+           **options) -> Result:
     """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on
     ``(q, lam)``: ``K q + J^T lam - Q_g - Q_ext = 0``, ``Phi(q, t) = 0``.
 
     Parameters
     ----------
     model : Model or System
-    t : float
-        Time at which loads and driving constraints are evaluated [s].
-    steps : int
-        Continuation steps: equilibria are solved at ``t_k = k t / steps`` in turn, each
-        starting from the previous one (load control along the model's own profiles).
-    tol : float
-        Newton stops when the position correction is below ``tol`` times the model size.
-    max_iter : int
-        Newton iteration limit per continuation step.
+    settings : StaticSettings, optional; **options
+        Its fields: ``t`` (0), ``steps`` (1), ``tol`` (1e-10), ``max_iter`` (30),
+        ``dense_max``, ``kinematic_tol`` (1e-4).
     q_start : (n_dof,), optional
         Starting configuration (default: the initial configuration).
-    dense_max : int
-        Linear solver: see :class:`~morphlab.solve.settings.Settings`.
-    kinematic_tol : float or None
-        Largest estimated kinematic error of a beam's floating frames, relative to its length
-        (:mod:`morphlab.results.kinematics`): above it the result's status is ``"warning"``
-        with a :class:`~morphlab.errors.KinematicAccuracyWarning`; None: not checked.
 
     Returns
     -------
     Result
-        The equilibrium path (``n_t = steps + 1``), velocities and accelerations zero.
+        The equilibrium path (``n_t = steps + 1``), velocities and accelerations zero; its
+        ``settings`` the :class:`StaticSettings`.
 
     Notes
     -----
@@ -68,35 +62,32 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
     the coefficients :data:`morphlab.solve.stepper.STATIC`: inertia weight 0, the constraint
     rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing for the
     displacement from the previous equilibrium (``beta h² = 1``).
-
-    (Long for its documentation: the code is the continuation loop and the path's result.)
     """
-    _check_args(steps, t, tol)
-    kinematic_tol = check_kinematic_tol(kinematic_tol)
-    system = (model if isinstance(model, System)
-              else compile_model(model, on_built=partial(precompile.start,
-                                                         dense_max=dense_max)))
+    st = StaticSettings.of(settings, **options)
+    _check(st)
+    kinematic_tol = check_kinematic_tol(st.kinematic_tol)
+    system = model if isinstance(model, System) else compile_model(model)
     dt = system.dtype
     q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
-    stp = Stepper.static(system, q, tol=tol, max_iter=max_iter, dense_max=dense_max)
+    times = (np.linspace(0.0, float(st.t), st.steps + 1) if st.steps > 1
+             else np.array([0.0, float(st.t)]))
+    T = _static_times(system, times)
+    stp = Stepper.static(system, q, T, tol=st.tol, max_iter=st.max_iter,
+                         dense_max=st.dense_max)
     n_dof = system.n_dof
     zero_v = np.zeros(n_dof, dtype=dt)
     lam = np.zeros(system.n_con, dtype=dt)
-    times = np.linspace(0.0, float(t), steps + 1) if steps > 1 else np.array([0.0, float(t)])
     Q = np.zeros((len(times), n_dof), dtype=dt)
     LAM = np.zeros((len(times), system.n_con), dtype=dt)
     iters = np.zeros(len(times), dtype=np.int64)
     Q[0] = q
     t_wall = _time.perf_counter()
-    settings = Settings(t_end=max(float(t), 1.0), dt=max(float(t), 1.0), tol=tol,
-                        max_iter=max_iter, stabilization=0.0, dense_max=dense_max,
-                        kinematic_tol=kinematic_tol)
 
     def result(k, status, message):
         sl = slice(0, k + 1)
         viol = np.array([np.max(np.abs(system.constraint_violation(Q[i], zero_v, times[i])[0]),
                                 initial=0.0) for i in range(k + 1)])
-        return Result(system=system, settings=settings, t=times[sl].copy(), q=Q[sl].copy(),
+        return Result(system=system, settings=st, t=times[sl].copy(), q=Q[sl].copy(),
                       v=np.zeros_like(Q[sl]), a=np.zeros_like(Q[sl]), lam=LAM[sl].copy(),
                       newton_iterations=iters[sl].copy(), constraint_violation=viol,
                       velocity_violation=np.zeros(k + 1), status=status, message=message,
@@ -106,7 +97,7 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
 
     for k in range(1, len(times)):
         try:
-            q, lam, iters[k], _ = stp.equilibrium(q, lam, float(times[k]), k)
+            q, lam, iters[k], _ = stp.equilibrium(q, lam, k, float(times[k]))
         except SolverError as e:
             if isinstance(e, ConvergenceError):
                 e.args = (f"static solve: {e}; try more continuation steps",)
@@ -115,7 +106,7 @@ def static(model: Model | System, *, t: float = 0.0, steps: int = 1, tol: float 
                 e.result.findings = kinematic_findings(e.result, kinematic_tol)
             raise
         Q[k], LAM[k] = q, lam
-    out = result(len(times) - 1, "ok", f"static equilibrium at t={t:.6g}")
+    out = result(len(times) - 1, "ok", f"static equilibrium at t={st.t:.6g}")
     if kinematic_tol is not None:
         report_findings(out, kinematic_findings(out, kinematic_tol), "warn")
     return out

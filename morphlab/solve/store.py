@@ -1,9 +1,11 @@
 """Where a run keeps its histories: the arrays of a Result, filled step by step.
 
-Only the histories asked for are kept (``store``; a long run of a large model often needs only
-the coordinates), in memory or in memory-mapped ``.npy`` files (``memmap``); a run whose
-histories do not fit the memory available is refused before it starts, with the size it needs.
-The Newton history is kept compactly: one row ``(|R|, correction)`` per iteration.
+Only the histories asked for are kept in full (``store``; a long run of a large model often
+needs only the coordinates), in memory or in memory-mapped ``.npy`` files (``memmap``); the
+others hold the two levels the stepping reads. A run whose histories do not fit the memory
+available is refused before it starts, with the size it needs. The same arrays are written by
+the steps solved from Python and by the compiled chunks of steps
+(:class:`~morphlab.kernels.histories.Histories`).
 """
 
 from __future__ import annotations
@@ -14,17 +16,12 @@ import pathlib
 import numpy as np
 
 from ..compile import System
-from ..compile.system import extra_items
 from ..errors import ModelError, ResourceError
-from ..kernels.joints import constraint_violation_history
+from ..kernels.histories import Histories
 from .settings import State
 
 #: The histories a run can keep, in the order of a state.
 HISTORIES = ("q", "v", "a", "lam")
-#: A run that does not keep both ``q`` and ``v`` in full buffers this many steps of them and
-#: evaluates their constraint violations in one compiled call: per step from Python, the
-#: evaluation and its two maxima cost about a tenth of a Newton step of a small model.
-VIOLATION_CHUNK = 64
 
 
 def available_memory() -> int | None:
@@ -40,7 +37,7 @@ def check_memory(system: System, n_t: int, store=HISTORIES, memmap=None) -> None
     need more than 80 % of the memory available now, before anything is allocated."""
     widths = {"q": system.n_dof, "v": system.n_dof, "a": system.n_dof, "lam": system.n_con}
     per_time = 0 if memmap is not None else sum(widths[k] for k in store if k in widths)
-    per_time += 3 * system.n_con + 2 * system.load_dofs.shape[0] + system.torque_dofs.shape[0]
+    per_time += 3 * system.n_con + 2 * system.count("loads") + system.count("torques")
     need = n_t * (per_time * np.dtype(system.dtype).itemsize + 8 * 5)  # + t, statistics
     avail = available_memory()
     if avail is not None and need > 0.8 * avail:
@@ -63,9 +60,12 @@ class HistoryStore:
         Histories kept; the others are ``None`` in the Result.
     memmap : path, optional
         A folder for the kept histories as memory-mapped ``.npy`` files (``q.npy``, ...).
+    max_iter : int
+        Newton's iteration limit (the rows of the Newton log per step).
     """
 
-    def __init__(self, system: System, t: np.ndarray, store=HISTORIES, memmap=None):
+    def __init__(self, system: System, t: np.ndarray, store=HISTORIES, memmap=None,
+                 max_iter: int = 12):
         store = tuple(store)
         if not store or not set(store) <= set(HISTORIES):
             raise ModelError(f"store must be a non-empty tuple of {HISTORIES}, got {store!r}")
@@ -73,21 +73,13 @@ class HistoryStore:
         n_t = t.size
         widths = {"q": system.n_dof, "v": system.n_dof, "a": system.n_dof,
                   "lam": system.n_con}
-        self.arrays = {k: self._array(k, (n_t, widths[k]), memmap) for k in store}
-        self.iterations = np.zeros(n_t, dtype=np.int64)
-        self.viol = np.zeros(n_t)
-        self.vviol = np.zeros(n_t)
-        self.log = np.zeros((max(4 * n_t, 16), 2))  # Newton rows, grown by doubling
-        self.log_offsets = np.zeros(n_t + 1, dtype=np.int64)
-        self._rows = 0  # Newton rows so far
-        self._u0 = np.ascontiguousarray(system.con_u0)
-        self._extra = extra_items(system)
-        self._batch = "q" in store and "v" in store  # violations from the kept histories
-        if system.n_con and not self._batch:  # else from a buffer of the last steps
-            m, dt = min(VIOLATION_CHUNK, n_t), system.dtype
-            self._buf = (np.zeros((m, system.n_dof), dt), np.zeros((m, system.n_dof), dt),
-                         np.zeros((m, system.n_con), dt), np.zeros((m, system.n_con), dt))
-        self._buffered = 0  # steps in the buffer, the last ones recorded
+        levels = {k: n_t if k in store else min(2, n_t) for k in HISTORIES}
+        arr = {k: self._array(k, (levels[k], widths[k]), memmap if k in store else None)
+               for k in HISTORIES}
+        self.H = Histories(arr["q"], arr["v"], arr["a"],
+                           np.zeros((min(2, n_t), system.n_dof), dtype=system.dtype),
+                           arr["lam"], np.zeros(n_t, dtype=np.int64),
+                           np.zeros((n_t, max_iter, 2)), np.zeros((n_t, 2)), system.n_con > 0)
         self.n_done = -1
 
     def _array(self, name, shape, memmap):
@@ -99,57 +91,42 @@ class HistoryStore:
         return np.lib.format.open_memmap(folder / f"{name}.npy", mode="w+", dtype=dt,
                                          shape=shape)
 
-    def record(self, n: int, st: State, iterations: int, history, ta) -> None:
-        """Keep step ``n``: its state, Newton iterations and history rows, and the constraint
-        violation at position and velocity level (``ta``: the time data at ``st.t``)."""
-        for name, arr in self.arrays.items():
-            arr[n] = getattr(st, name)
-        self.iterations[n] = iterations
-        k, rows = self._rows, len(history)
-        if k + rows > self.log.shape[0]:
-            self.log = np.concatenate([self.log, np.zeros_like(self.log)])
+    def state(self, n: int) -> State:
+        """The state at time index ``n`` (which the histories must still hold)."""
+        H = self.H
+        return State(float(self.t[n]), H.Q[n % H.Q.shape[0]].copy(),
+                     H.V[n % H.V.shape[0]].copy(), H.A[n % H.A.shape[0]].copy(),
+                     H.L[n % H.L.shape[0]].copy(), H.G[n % H.G.shape[0]].copy())
+
+    def record(self, n: int, st: State, iterations: int, history) -> None:
+        """Keep step ``n`` solved from Python: its state, Newton iterations and history rows,
+        and its constraint violation."""
+        H = self.H
+        for arr, x in ((H.Q, st.q), (H.V, st.v), (H.A, st.a), (H.L, st.lam), (H.G, st.g)):
+            arr[n % arr.shape[0]] = x
+        H.iters[n] = iterations
+        rows = min(len(history), H.newton.shape[1])
         if rows:
-            self.log[k:k + rows] = history
-        self._rows = k + rows
-        self.log_offsets[n + 1] = self._rows
+            H.newton[n, :rows] = np.asarray(history)[:rows]
         self.n_done = n
-        if self.system.n_con and not self._batch:  # else at the end, from the histories
-            k = self._buffered
-            for buf, x in zip(self._buf, (st.q, st.v, ta.c, ta.cd)):
-                buf[k] = x
-            self._buffered = k + 1
-            if self._buffered == self._buf[0].shape[0]:
-                self._violations()
+        if H.track:
+            phi, phid = self.system.constraint_violation(st.q, st.v, float(self.t[n]))
+            H.viol[n] = np.max(np.abs(phi.real)), np.max(np.abs(phid.real))
 
-    def _violations(self) -> None:
-        """The constraint violations of the buffered steps, the last ones recorded."""
-        k, s = self._buffered, self.system
-        if k == 0:
-            return
-        n0 = self.n_done + 1 - k
-        Q, V, C, CD = (b[:k] for b in self._buf)
-        constraint_violation_history(self._extra, Q, V, C, CD, s.con_kind, s.con_dofs,
-                                     self._u0, self.viol[n0:n0 + k], self.vviol[n0:n0 + k])
-        self._buffered = 0
-
-    def result_fields(self, table) -> dict:
+    def result_fields(self) -> dict:
         """The Result's history fields up to the last recorded step (copies of in-memory
-        arrays, views of memory maps); ``table``: the run's time table."""
-        sl = slice(0, self.n_done + 1)
-        if self._buffered:
-            self._violations()
-        if self._batch and self.system.n_con and self.n_done >= 0 and table is not None:
-            s = self.system
-            constraint_violation_history(self._extra, self.arrays["q"][sl],
-                                         self.arrays["v"][sl],
-                                         np.ascontiguousarray(table.C[sl]),
-                                         np.ascontiguousarray(table.CD[sl]), s.con_kind,
-                                         s.con_dofs, self._u0, self.viol[sl], self.vviol[sl])
-        out = {k: (self.arrays[k][sl] if isinstance(self.arrays[k], np.memmap)
-                   else self.arrays[k][sl].copy()) if k in self.arrays else None
-               for k in HISTORIES}
-        end = self.log_offsets[self.n_done + 1] if self.n_done >= 0 else 0
-        return dict(t=self.t[sl].copy(), newton_iterations=self.iterations[sl].copy(),
-                    constraint_violation=self.viol[sl].copy(),
-                    velocity_violation=self.vviol[sl].copy(), newton_log=self.log[:end].copy(),
-                    newton_log_offsets=self.log_offsets[:self.n_done + 2].copy(), **out)
+        arrays, views of memory maps)."""
+        H, n = self.H, self.n_done + 1
+        sl = slice(0, n)
+        named = {"q": H.Q, "v": H.V, "a": H.A, "lam": H.L}
+        out = {k: (named[k][sl] if isinstance(named[k], np.memmap) else named[k][sl].copy())
+               if k in self.store else None for k in HISTORIES}
+        iters = H.iters[sl].copy()
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        offsets[1:] = np.cumsum(np.minimum(iters, H.newton.shape[1]))
+        log = (np.concatenate([H.newton[k, :min(int(iters[k]), H.newton.shape[1])]
+                               for k in range(n)]) if n else np.zeros((0, 2)))
+        return dict(t=self.t[sl].copy(), newton_iterations=iters,
+                    constraint_violation=H.viol[sl, 0].copy(),
+                    velocity_violation=H.viol[sl, 1].copy(), newton_log=log,
+                    newton_log_offsets=offsets, **out)

@@ -1,9 +1,14 @@
 """The time loop: :func:`simulate` (the public entry point) and :func:`integrate`.
 
-Each step is solved by :class:`morphlab.solve.stepper.Stepper` (generalized-alpha + Newton on
-the sparse saddle-point system); this module runs the steps, stores the histories, computes the
-diagnostics, reports progress, calls observers (the sensitivity strategies) and turns a failure
-into an error that carries the results up to the last converged step.
+The first steps of a run (the initial solve, and the step whose matrix SuperLU chooses a row
+order on) are solved from Python by :class:`morphlab.solve.stepper.Stepper`; once the
+factorization has settled, the steps run in compiled chunks (:func:`morphlab.kernels.steps.
+run_steps`: the same kernels and arithmetic) that return to Python at the end of each chunk —
+for the progress report and Ctrl-C — or at a step that needs Python (a new sparse row order,
+a failure). A run with a step observer, in complex arithmetic, with modified Newton or with
+``compiled_newton=False`` steps from Python throughout. This module stores the histories,
+computes the diagnostics, reports progress, calls the observer or the sensitivity hook, and
+turns a failure into an error that carries the results up to the last converged step.
 """
 
 from __future__ import annotations
@@ -13,23 +18,26 @@ import threading
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 
 from ..compile import System, compile_model
-from ..compile.system import TimeTable, table_at, time_table
+from ..compile.system import time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
+from ..jit import announce_compilation
+from ..kernels.newton import CONVERGED, PIVOT_REFUSED
+from ..kernels.steps import run_steps
 from ..model import Model
 from ..results.checks import assess, report_findings
 from ..results.result import Result
-from . import precompile
-from .cache import announce_compilation
 from .linalg import Factor
 from .scheme import StepCoefficients
 from .settings import Settings, State
-from .stepper import Stepper
+from .stepper import Stepper, StepOutcome
 from .store import HISTORIES, HistoryStore, check_memory
+
+#: Wall time a compiled chunk of steps aims at [s] (the progress report's and Ctrl-C's grain).
+CHUNK_SECONDS = 0.1
 
 
 @dataclass
@@ -47,15 +55,44 @@ class StepInfo:
     coef: StepCoefficients
     stepper: Stepper
     newton_history: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    table: TimeTable | None = None
 
 
-def _check_options(settings: Settings, observer, max_halvings) -> None:
+class StepHook:
+    """What a sensitivity method does during the primal run (its base class; the direct and
+    adjoint methods of :mod:`morphlab.sensitivity` subclass it).
+
+    ``rows``: the rows of the Newton fill (3: the Newton matrix with ``Dq`` and ``Dv``);
+    :meth:`python_step` is called after each step solved from Python (the initial solve
+    included); :meth:`kernels` gives the compiled chunk of steps ``k0 .. k1 - 1`` the record
+    it writes (``keep`` of :func:`~morphlab.kernels.steps.run_steps`, or None) and
+    :meth:`after_chunk` follows it with the steps ``k0 .. k - 1`` it converged; :meth:`chunk`
+    may shorten a chunk (a record has a capacity)."""
+
+    rows = 1
+
+    def start(self, stepper: Stepper, hist: HistoryStore) -> None:
+        """Called once, before the initial solve."""
+
+    def python_step(self, k: int, outcome: StepOutcome) -> None:
+        """Step ``k``, solved from Python, has converged."""
+
+    def kernels(self, k0: int, k1: int):
+        return None
+
+    def after_chunk(self, k0: int, k: int) -> None:
+        """The compiled chunk converged the steps ``k0 .. k - 1``."""
+
+    def chunk(self, k0: int, k1: int) -> int:
+        return k1
+
+
+def _check_options(settings: Settings, observer, hook, max_halvings) -> None:
     """Refuse the options that contradict each other or an observer; validate ``settings``."""
-    if settings.newton == "modified" and observer is not None:
+    watched = observer is not None or hook is not None
+    if settings.newton == "modified" and watched:
         raise ModelError("newton='modified' cannot be combined with an observer: the "
                          "sensitivities need the exact Newton matrix of every step")
-    if max_halvings and observer is not None:
+    if max_halvings and watched:
         raise ModelError("automatic step reduction cannot be combined with an observer "
                          "(sensitivity runs need one fixed step sequence)")
     if not (isinstance(max_halvings, int) and 0 <= max_halvings <= 20):
@@ -63,9 +100,8 @@ def _check_options(settings: Settings, observer, max_halvings) -> None:
     settings.validate()
 
 
-def _time_table(system: System, settings: Settings, t: np.ndarray,
-                hist: HistoryStore) -> tuple[TimeTable, ProfileError | None]:
-    """The time table of the run, and None; when a time profile fails at step ``k > 0``, the
+def _time_table(system: System, settings: Settings, t: np.ndarray, hist: HistoryStore):
+    """The time values of the run, and None; when a time profile fails at step ``k > 0``, the
     table of the steps before it and that error (raised at once, with an empty result, at
     step 0)."""
     try:
@@ -73,108 +109,192 @@ def _time_table(system: System, settings: Settings, t: np.ndarray,
     except ProfileError as err:
         if err.step == 0:
             err.result = Result(system=system, settings=settings, status="failed",
-                                message=str(err), **hist.result_fields(None))
+                                message=str(err), **hist.result_fields())
             raise
         return time_table(system, t[:err.step]), err
 
 
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
-              progress: bool | Callable = False, scale: float | None = None, q0=None, v0=None,
-              polish: int = 0, max_halvings: int = 0, store=HISTORIES, memmap=None) -> Result:
+              hook: StepHook | None = None, progress: bool | Callable = False,
+              scale: float | None = None, q0=None, v0=None, polish: int = 0,
+              max_halvings: int = 0, store=HISTORIES, memmap=None) -> Result:
     """Run the time loop on a compiled system; returns a :class:`morphlab.results.Result`.
 
     ``observer(info: StepInfo)`` is called after the initial solve and after every converged
-    step; the sensitivity strategies use it. On failure the raised :class:`SolverError` carries
-    the results up to the last converged step as ``error.result``; an interrupt (Ctrl-C, or a
-    KeyboardInterrupt from the observer or the progress callback) raises
-    :class:`~morphlab.errors.Interrupted` (a KeyboardInterrupt) carrying them the same way.
-    ``max_halvings > 0`` retries a failed step with up to ``2**max_halvings`` sub-steps (not
-    with an observer: sensitivity runs need the same step sequence for every design); the
-    results stay on the regular grid and ``result.step_reductions`` lists ``(t, n_substeps)``
-    of each retried step. ``store``, ``memmap``: :class:`~morphlab.solve.store.HistoryStore`.
+    step (the run then steps from Python throughout); ``hook``: a sensitivity method's
+    :class:`StepHook`. On failure the raised :class:`SolverError` carries the results up to
+    the last converged step as ``error.result``; an interrupt (Ctrl-C, or a KeyboardInterrupt
+    from the observer or the progress callback) raises :class:`~morphlab.errors.Interrupted`
+    (a KeyboardInterrupt) carrying them the same way. ``max_halvings > 0`` retries a failed
+    step with up to ``2**max_halvings`` sub-steps (not with an observer: sensitivity runs need
+    the same step sequence for every design); the results stay on the regular grid and
+    ``result.step_reductions`` lists ``(t, n_substeps)`` of each retried step. ``store``,
+    ``memmap``: :class:`~morphlab.solve.store.HistoryStore`.
     """
-    _check_options(settings, observer, max_halvings)
-    announce_compilation()
+    _check_options(settings, observer, hook, max_halvings)
+    announce_compilation(system)
     n_steps = settings.n_steps
     check_memory(system, n_steps + 1, store, memmap)
     t = settings.t_start + settings.h * np.arange(n_steps + 1)
-    hist = HistoryStore(system, t, store, memmap)
-    table, failure = _time_table(system, settings, t, hist)
-    if observer is None:  # a sensitivity run compiles other signatures of the same kernels
-        precompile.start(system, table, settings.dense_max)
-    return _run(system, settings, t, hist, table, failure, observer=observer,
-                progress=progress, scale=scale, q0=q0, v0=v0, polish=polish,
-                max_halvings=max_halvings)
-
-
-def _run(system, settings, t, hist, table, failure, *, observer, progress, scale, q0, v0,
-         polish, max_halvings) -> Result:
-    """The time loop of :func:`integrate`."""
-    n_steps = settings.n_steps
-    stepper = Stepper.dynamic(system, settings, scale=scale, polish=polish)
+    hist = HistoryStore(system, t, store, memmap, settings.max_iter)
+    T, failure = _time_table(system, settings, t, hist)
     if failure is not None:  # run the steps before the failing time, then raise it
         n_steps = failure.step - 1
-    reductions: list = []
-    t_wall = _time.perf_counter()
-
-    def make_result(status, message):
-        return Result(system=system, settings=settings, status=status, message=message,
-                      n_factorizations=stepper.n_factorizations,
-                      wall_time=_time.perf_counter() - t_wall, scale=stepper.scale,
-                      step_reductions=list(reductions), **hist.result_fields(table))
-
-    dt = system.dtype
-    q_init = (system.q0 if q0 is None else q0).astype(dt)
-    v_init = (system.v0 if v0 is None else v0).astype(dt)
-    report = progress if callable(progress) else (_print_progress if progress else None)
-    with _Interrupts() as interrupts:
-        try:
-            st, lu, z = stepper.initial(t[0], q_init, v_init, ta=table_at(table, 0))
-            hist.record(0, st, 1, (), table_at(table, 0))
-            if observer is not None:
-                observer(StepInfo(0, None, st, lu, z, st.q, st.v, stepper.init_coef, stepper,
-                                  table=table))
-            ta_old = table_at(table, 0)
-            for n in range(1, n_steps + 1):
-                interrupts.check()
-                ta = table_at(table, n)
-                new, lu, it, z, qh, vh, R_hist, newton = stepper.advance(
-                    st, float(t[n]), n, ta_old, ta, max_halvings, reductions)
-                hist.record(n, new, it, newton, ta)
-                if observer is not None:
-                    observer(StepInfo(n, st, new, lu, z, qh, vh, stepper.step_coef, stepper,
-                                      newton, table=table))
-                st, ta_old = new, ta
-                if report is not None:
-                    report(n, n_steps, float(t[n]))
-        except SolverError as err:
-            err.result = make_result("failed", str(err))
-            err.result.findings = assess(err.result, settings.constraint_tol,
-                                         settings.kinematic_tol)
-            if err.result.findings:  # what the run showed before it failed
-                err.args = (f"{err}; before it: " + "; ".join(
-                    f.message for f in err.result.findings),)
-            raise
-        except KeyboardInterrupt as err:
-            k = hist.n_done
-            stop = Interrupted(f"interrupted after step {k} (t={t[max(k, 0)]:.6g})",
-                               time=float(t[k]) if k >= 0 else None, step=k,
-                               result=make_result("interrupted", "interrupted by the user"))
-            raise stop from err
+    stepper = Stepper.dynamic(system, settings, T, scale=scale, polish=polish,
+                              rows=hook.rows if hook is not None else 1)
+    loop = _Loop(system, settings, stepper, hist, T, t, n_steps, observer, hook, progress,
+                 max_halvings, q0, v0)
+    result = loop.run()
     if failure is not None:
-        failure.result = make_result("failed", str(failure))
+        failure.result = result
         raise failure
-    result = make_result("ok", f"completed {n_steps} steps")
     report_findings(result, assess(result, settings.constraint_tol, settings.kinematic_tol),
                     settings.checks)
     return result
 
 
+class _Loop:
+    """The steps of one run (module docstring)."""
+
+    def __init__(self, system, settings, stepper, hist, T, t, n_steps, observer, hook,
+                 progress, max_halvings, q0, v0):
+        self.system, self.settings, self.stepper, self.hist = system, settings, stepper, hist
+        self.T, self.t, self.n_steps = T, t, n_steps
+        self.observer, self.hook, self.max_halvings = observer, hook, max_halvings
+        self.report = progress if callable(progress) else (_print_progress if progress
+                                                           else None)
+        dt = system.dtype
+        self.q0 = (system.q0 if q0 is None else q0).astype(dt)
+        self.v0 = (system.v0 if v0 is None else v0).astype(dt)
+        self.reductions: list = []
+        self.logged = np.zeros(t.size, dtype=np.int64)  # Newton log rows of each step
+        self.t_wall = _time.perf_counter()
+        self.per_step = None  # measured wall time of a compiled step [s]
+
+    def make_result(self, status: str, message: str) -> Result:
+        fields = self.hist.result_fields()
+        n = self.hist.n_done + 1
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        offsets[1:] = np.cumsum(self.logged[:n])
+        H = self.hist.H
+        fields["newton_log"] = (np.concatenate([H.newton[k, :self.logged[k]] for k in range(n)])
+                                if n else np.zeros((0, 2)))
+        fields["newton_log_offsets"] = offsets
+        return Result(system=self.system, settings=self.settings, status=status,
+                      message=message, n_factorizations=self.stepper.n_factorizations,
+                      wall_time=_time.perf_counter() - self.t_wall, scale=self.stepper.scale,
+                      step_reductions=list(self.reductions), **fields)
+
+    def compiled(self) -> bool:
+        """Can the next steps run in compiled chunks?"""
+        s, nw = self.settings, self.stepper.newton
+        return (self.observer is None and s.compiled_newton and s.newton == "full"
+                and self.system.dtype.kind == "f" and nw.polish == 0
+                and nw.factorization.settled)
+
+    def run(self) -> Result:
+        stepper, hist, t = self.stepper, self.hist, self.t
+        with _Interrupts() as interrupts:
+            try:
+                if self.hook is not None:
+                    self.hook.start(stepper, hist)
+                st, lu, z = stepper.initial(t[0], self.q0, self.v0)
+                hist.record(0, st, 1, ())
+                self.logged[0] = 0
+                outcome = StepOutcome(st, lu, 1, z, st.q, st.v, None, np.zeros((0, 2)))
+                self.after(0, None, outcome)
+                n = 1
+                while n <= self.n_steps:
+                    interrupts.check()
+                    if self.compiled():
+                        n = self.chunk(n)
+                        if n > self.n_steps:
+                            break
+                    prev = hist.state(n - 1)
+                    out = stepper.advance(prev, float(t[n]), n, self.max_halvings,
+                                          self.reductions)
+                    hist.record(n, out.state, out.iterations, out.newton)
+                    self.logged[n] = len(out.newton)
+                    self.after(n, prev, out)
+                    n += 1
+            except SolverError as err:
+                err.result = self.make_result("failed", str(err))
+                err.result.findings = assess(err.result, self.settings.constraint_tol,
+                                             self.settings.kinematic_tol)
+                if err.result.findings:  # what the run showed before it failed
+                    err.args = (f"{err}; before it: " + "; ".join(
+                        f.message for f in err.result.findings),)
+                raise
+            except KeyboardInterrupt as err:
+                k = hist.n_done
+                stop = Interrupted(f"interrupted after step {k} (t={t[max(k, 0)]:.6g})",
+                                   time=float(t[k]) if k >= 0 else None, step=k,
+                                   result=self.make_result("interrupted",
+                                                           "interrupted by the user"))
+                raise stop from err
+        return self.make_result("ok", f"completed {self.n_steps} steps")
+
+    def after(self, n: int, prev, out: StepOutcome) -> None:
+        """The observer, the hook and the progress report after a step solved from Python."""
+        if self.hook is not None:
+            self.hook.python_step(n, out)
+        if self.observer is not None:
+            coef = self.stepper.init_coef if n == 0 else self.stepper.step_coef
+            self.observer(StepInfo(n, prev, out.state, out.factor, out.z, out.qh, out.vh,
+                                   coef, self.stepper, out.newton))
+        if self.report is not None and n > 0:
+            self.report(n, self.n_steps, float(self.t[n]))
+
+    def chunk(self, n: int) -> int:
+        """Steps from ``n`` in one compiled call; returns the next step to solve (a step
+        that needs Python: a new sparse row order)."""
+        stp, nw = self.stepper, self.stepper.newton
+        size = 8 if self.per_step is None else max(1, int(CHUNK_SECONDS / self.per_step))
+        k1 = min(self.n_steps + 1, n + size)
+        keep = None
+        if self.hook is not None:
+            k1 = self.hook.chunk(n, k1)
+            keep = self.hook.kernels(n, k1)
+        F = nw.factorization.loop_arrays()
+        w0 = _time.perf_counter()
+        k, status, bad, it, z = run_steps(stp.M, self.T, stp.P, stp.scheme_of(), nw.csc, F,
+                                          nw.options(), nw.work(), self.hist.H, n, k1, keep)
+        if k > n:
+            self.per_step = (_time.perf_counter() - w0) / (k - n)
+        H = self.hist.H
+        self.logged[n:k] = H.iters[n:k]
+        nw.n_factorizations += int(H.iters[n:k].sum())
+        self.hist.n_done = k - 1
+        if self.hook is not None:
+            self.hook.after_chunk(n, k)
+        if self.report is not None and k > n:
+            self.report(k - 1, self.n_steps, float(self.t[k - 1]))
+        if status == CONVERGED or status == PIVOT_REFUSED:
+            if status == PIVOT_REFUSED:
+                nw.n_factorizations += it - 1
+            return k
+        # a failure at step k: the error of the step-by-step solver, with the step's problem
+        prev = self.hist.state(k - 1)
+        p = _problem_at(stp, prev, float(self.t[k]), k)
+        nw.outcome(p, z, it, status, bad, F)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _problem_at(stp: Stepper, st: State, t1: float, k: int):
+    """The step problem of step ``k`` from ``st`` (for the messages of a failed chunk)."""
+    from ..kernels import newmark
+
+    coef = stp.step_coef
+    qh, vh = np.empty_like(st.q), np.empty_like(st.q)
+    newmark.predict(coef.arrays.pc, st.q, st.v, st.a, st.g, qh, vh)
+    return stp.problem(qh, vh, coef, stp.history(st, coef, stp.T, k - 1), stp.T, k, t1, k)
+
+
 class _Interrupts:
     """Ctrl-C during a run: while the default SIGINT handler is installed (main thread), a
-    first SIGINT only sets a flag, which the loop checks between steps (so it never arrives
-    inside a compiled call, whose result would then be lost); a second one interrupts at
-    once."""
+    first SIGINT only sets a flag, which the loop checks between steps or chunks of steps (so
+    it never arrives inside a compiled call, whose result would then be lost); a second one
+    interrupts at once."""
 
     def __init__(self):
         self.flag = False
@@ -262,9 +382,7 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
         With ``error.result`` holding the steps completed before the failure.
     """
     settings = Settings.of(settings, **options)
-    helper = partial(precompile.start, dense_max=settings.dense_max)
-    system = model if isinstance(model, System) else compile_model(
-        model, on_built=helper if observer is None else None)
+    system = model if isinstance(model, System) else compile_model(model)
     for name, x in (("q0", q0), ("v0", v0)):
         if x is not None and (np.shape(x) != (system.n_dof,) or not np.all(np.isfinite(x))):
             raise ModelError(f"{name} must be a finite array of shape ({system.n_dof},), got "

@@ -1,4 +1,4 @@
-"""Where the compiled kernels are cached, and the one-line notice of their first compilation.
+"""Where the compiled kernels are cached, and the notice of their first compilation.
 
 Numba compiles the kernels on their first call in an environment and caches the machine code
 on disk: in ``$NUMBA_CACHE_DIR`` when that is set, else next to the kernels' sources (their
@@ -11,13 +11,7 @@ from __future__ import annotations
 import os
 import sys
 
-from ..kernels.newton import newton_loop
-
-#: Wall time of the first compilation of a primal run's kernels on 2 idle cores, with the
-#: compile helper of ``morphlab.solve.precompile`` [s] (BENCHMARKS.md, "Cold start").
-FIRST_COMPILATION_S = 13
-#: The same in one process (one core, or ``MORPHLAB_COMPILE_HELPER=0``) [s].
-FIRST_COMPILATION_1CORE_S = 20
+from ..kernels.steps import run_steps
 
 _announced = False
 
@@ -25,26 +19,25 @@ _announced = False
 def kernel_cache_dir() -> str | None:
     """The folder Numba caches the kernels in (None if Numba does not say)."""
     try:
-        return newton_loop._cache._cache_path
+        return run_steps._cache._cache_path
     except AttributeError:  # pragma: no cover - another Numba layout
         return None
 
 
 def kernels_cached() -> bool:
-    """Has the Newton loop, the last kernel a run compiles, been cached already?"""
+    """Has the time loop, the last kernel a run compiles, been cached already?"""
     try:
-        path = newton_loop._cache._cache_file._index_path
+        path = run_steps._cache._cache_file._index_path
     except AttributeError:  # pragma: no cover - another Numba layout: assume cached
         return True
-    return bool(newton_loop.signatures) or os.path.exists(path)
+    return bool(run_steps.signatures) or os.path.exists(path)
 
 
-def announce_compilation() -> None:
+def announce_compilation(system=None) -> None:
     """Print, once per process, that the kernels are being compiled (a cold cache)."""
     global _announced
     if _announced or kernels_cached():
         return
     _announced = True
-    print(f"morphlab: compiling the numerical kernels once (about {FIRST_COMPILATION_S} s on "
-          f"2 idle cores, {FIRST_COMPILATION_1CORE_S} s on one); they are cached in "
+    print(f"morphlab: compiling the numerical kernels once; they are cached in "
           f"{kernel_cache_dir()} for later runs", file=sys.stderr, flush=True)

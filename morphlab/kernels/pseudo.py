@@ -1,0 +1,123 @@
+"""The explicit part of a sensitivity pseudo-load: ``dR/dp_i`` of a step at its converged
+state, for every design variable ``i`` (``docs/theory.md`` §6).
+
+The residual depends on a design variable only through the system's design data (a flat
+vector whose entries the kinds' tables view, :mod:`morphlab.kernels.system`) and its time
+values. Variable ``i`` changes the entries ``PP[PO[i]:PO[i + 1]]`` of the design data, with
+the derivatives ``PV`` there, and the time values of table ``tl[i]`` / ``tn[i]``. Each kind of
+item it changes is evaluated over the items it changes (:class:`~morphlab.kernels.system.
+Parts`) along one of two paths:
+
+* **linear**: where the kind's residual is linear in the changed data (the invariants and
+  element matrices of the bodies, with their damping and the gravity held; the magnitudes of
+  point forces and torques), the derivative is the residual with the derivatives in place of
+  the data: real arithmetic, the same kernels as the primal's, on ``ML`` (the system's arrays
+  with the linear design fields as views of the zero vector ``ZL``) and the derivative time
+  tables ``TL``;
+* **perturbed**: otherwise, the residual of the perturbed design: complex step (``MN`` complex,
+  ``pert = i h``: ``Im R / h``, exact) or, for the paper's semi-analytical method, a forward
+  difference (``MN`` real: ``(R(p + h) - R(p)) / h``), on ``MN`` (the system's arrays as
+  views of ``DN``, into which the perturbed design's values ``VN`` are written and the
+  nominal's restored) and the perturbed time tables ``TN``.
+
+The parts each variable changes are evaluated alone: a thickness variable of a few elements
+costs a few elements, not a whole residual.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ._jit import inner, kernel
+from .assemble import residual
+from .system import Parts, set_positions
+from .types import Level
+
+
+class Pseudo(NamedTuple):
+    """What the explicit parts of the pseudo-loads read (module docstring).
+
+    ``OFF``, ``OFFN`` (n_x, n_kinds + 1): offsets into ``IDX`` of the items each variable's
+    linear and perturbed paths evaluate; ``FOFF`` (n_x + 1,), ``FIDX``: its flexible
+    coordinates; ``PO`` (n_x + 1,), ``PP``: its positions in the flat design data, ``PV`` (real)
+    the derivatives there and ``VN`` (``DN``'s dtype) the perturbed design's values, ``D0``
+    the nominal's (``DN``'s dtype); ``ML``, ``ZL``, ``TL``, ``tl``: the linear path;
+    ``MN``, ``DN``, ``TN``, ``tn``, ``pert``: the perturbed path; ``forward``: the perturbed
+    path is a forward difference (else a complex step); ``WL``, ``WN``: the bodies' scratch of
+    each path.
+    """
+
+    OFF: np.ndarray
+    OFFN: np.ndarray
+    IDX: np.ndarray
+    FOFF: np.ndarray
+    FIDX: np.ndarray
+    PO: np.ndarray
+    PP: np.ndarray
+    PV: np.ndarray
+    VN: np.ndarray
+    D0: np.ndarray
+    ML: tuple
+    ZL: np.ndarray
+    TL: tuple
+    tl: np.ndarray
+    MN: tuple
+    DN: np.ndarray
+    TN: tuple
+    tn: np.ndarray
+    pert: np.ndarray
+    forward: bool
+    WL: tuple
+    WN: tuple
+
+
+@inner
+def _any(off):
+    return off[off.shape[0] - 1] > off[0]
+
+
+@inner
+def explicit(ps, M, T, i, x, w, k, mask, R, RN, R0):
+    """Add ``dR/dp_i`` of one level's residual share (state ``x``, weights ``w``, time index
+    ``k``) to ``R`` (n,) float64; ``mask`` (n_flex,) bool, all False on entry and on return;
+    ``RN``, ``R0``: scratch residuals (``MN``'s dtype, float64). ``M``, ``T``: the nominal
+    system and time values (the forward difference subtracts their residual)."""
+    n_dof = x.q.shape[0]
+    a, b = ps.PO[i], ps.PO[i + 1]
+    pos = ps.PP[a:b]
+    for j in range(ps.FOFF[i], ps.FOFF[i + 1]):
+        mask[ps.FIDX[j]] = True
+    if _any(ps.OFF[i]):
+        set_positions(ps.ZL, pos, ps.PV[a:b])
+        residual(ps.ML, x, w, ps.TL, ps.tl[i], k, Parts(ps.OFF[i], ps.IDX, mask), n_dof, R,
+                 ps.WL)
+        for j in range(a, b):
+            ps.ZL[ps.PP[j]] = 0.0
+    if _any(ps.OFFN[i]):
+        P = Parts(ps.OFFN[i], ps.IDX, mask)
+        for j in range(RN.shape[0]):
+            RN[j] = 0.0
+        xn = Level(x.q.astype(ps.DN.dtype), x.v.astype(ps.DN.dtype), x.a.astype(ps.DN.dtype),
+                   x.lam.astype(ps.DN.dtype))
+        set_positions(ps.DN, pos, ps.VN[a:b])
+        residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
+        set_positions(ps.DN, pos, ps.D0[a:b])
+        if ps.forward:
+            for j in range(R0.shape[0]):
+                R0[j] = 0.0
+            residual(M, x, w, T, np.int64(0), k, P, n_dof, R0, ps.WL)
+            h = ps.pert[i].real
+            for j in range(R.shape[0]):
+                R[j] += (RN[j].real - R0[j]) / h
+        else:
+            h = ps.pert[i].imag
+            for j in range(R.shape[0]):
+                R[j] += RN[j].imag / h
+    for j in range(ps.FOFF[i], ps.FOFF[i + 1]):
+        mask[ps.FIDX[j]] = False
+
+
+@kernel
+def explicit_column(ps, M, T, i, x, w, k, mask, R, RN, R0):
+    """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
+    explicit(ps, M, T, i, x, w, k, mask, R, RN, R0)
