@@ -11,6 +11,7 @@ so one bad design never costs its neighbours.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import inspect
 import os
 import pickle
@@ -28,13 +29,14 @@ from .sweep_result import FAILED, OK
 # Keyword arguments a task sets itself (or that make no sense in a worker).
 _RESERVED = {"model", "build", "p0", "responses", "variables", "method", "settings",
              "progress", "observer", "memmap"}
+_FIELDS = {f.name for f in dataclasses.fields(Settings)}
 
 
 def _allowed(gradients) -> set[str]:
     fn = sensitivities if gradients else simulate
     params = inspect.signature(fn).parameters
     own = {k for k, p in params.items() if p.kind is p.KEYWORD_ONLY}
-    return (own | {f.name for f in Settings.__dataclass_fields__.values()}) - _RESERVED
+    return (own | _FIELDS) - _RESERVED
 
 
 class SimulationTask:
@@ -47,26 +49,36 @@ class SimulationTask:
         :func:`morphlab.sensitivities`).
     responses : dict of str -> callable
         ``f(result) -> float`` (see :mod:`morphlab.responses`).
-    settings : dict or Settings
-        The run's keyword arguments: the fields of :class:`morphlab.Settings` (``t_end``,
-        ``dt`` [s], ...) and the other keyword options of :func:`morphlab.simulate` (or of
-        :func:`morphlab.sensitivities` with gradients), e.g. ``max_halvings``.
+    settings : Settings or dict
+        The run's options: a :class:`morphlab.Settings`, or a dict of its fields (``t_end``,
+        ``dt`` [s], ...) that may also hold the other keyword options of
+        :func:`morphlab.simulate` (``max_halvings``, ``store``, ``q0``, ``v0``) or, with
+        gradients, of :func:`morphlab.sensitivities` (``step``, ``refine``, ``store``).
     gradients : bool or list of str
         ``False``: values only (:func:`morphlab.simulate`); ``True``: derivatives by every
         design variable; a list: by these variables (:func:`morphlab.sensitivities`).
     method : str or strategy
         Sensitivity method (with gradients), as for :func:`morphlab.sensitivities`.
+    options : dict, optional
+        Those other keyword options, when ``settings`` is a Settings object.
+
+    Attributes
+    ----------
+    settings : Settings
+        The run's settings, validated at construction and passed on as ``settings=``.
+    options : dict
+        The other keyword options (never fields of Settings).
 
     Raises
     ------
     StudyError
-        A build or response that is not callable, a setting neither function takes, a
+        A build or response that is not callable, an option neither function takes, a
         setting value :class:`morphlab.Settings` refuses.
     """
 
     def __init__(self, build: Callable[[dict], object], responses: Mapping[str, Callable],
                  settings: Mapping | Settings, *, gradients: bool | list[str] = False,
-                 method="direct"):
+                 method="direct", options: Mapping | None = None):
         if not callable(build):
             raise StudyError(f"build must be a function p -> Model, got {build!r}")
         if not isinstance(responses, Mapping) or not responses:
@@ -80,35 +92,42 @@ class SimulationTask:
                              f"{gradients!r}")
         self.build, self.responses, self.method = build, dict(responses), method
         self.gradients = gradients if isinstance(gradients, bool) else list(gradients)
-        self.settings = self._checked(settings)
+        self.settings, self.options = self._checked(settings, options)
 
-    def _checked(self, settings) -> dict:
+    def _checked(self, settings, options) -> tuple[Settings, dict]:
+        """The Settings object (normalized once, here) and the other options."""
+        if options is not None and not isinstance(options, Mapping):
+            raise StudyError(f"options must be a dict or None, got {options!r}")
         if isinstance(settings, Settings):
-            return {"settings": settings}
-        if not isinstance(settings, Mapping):
+            given, base = dict(options or {}), settings
+        elif isinstance(settings, Mapping):
+            given, base = {**settings, **(options or {})}, None
+        else:
             raise StudyError(f"settings must be a dict or a Settings, got {settings!r}")
-        allowed = _allowed(self.gradients)
-        unknown = sorted(set(settings) - allowed)
+        fn = "sensitivities" if self.gradients else "simulate"
+        extra = _allowed(self.gradients) - _FIELDS
+        unknown = sorted(set(given) - extra - (_FIELDS if base is None else set()))
         if unknown:
-            fn = "sensitivities" if self.gradients else "simulate"
+            valid = sorted(extra | (_FIELDS if base is None else set()))
             raise StudyError(f"settings {unknown} are not options of morphlab.{fn}; valid: "
-                             f"{sorted(allowed)}")
-        fields = {k: v for k, v in settings.items() if k in Settings.__dataclass_fields__}
+                             f"{valid}" + ("" if base is None else " (the fields of Settings "
+                                           "go in the Settings object)"))
+        fields = {k: v for k, v in given.items() if k in _FIELDS}
         try:
-            Settings.of(**fields)
+            out = Settings.of(base, **fields)
         except Exception as exc:
             raise StudyError(f"settings refused: {exc}") from exc
-        return dict(settings)
+        return out, {k: v for k, v in given.items() if k not in _FIELDS}
 
     def evaluate(self, p: dict) -> tuple[dict, dict]:
         """``(values, gradients)`` of the design ``p``: ``{r: float}``,
         ``{r: {v: float}}`` (empty without gradients)."""
         if not self.gradients:
-            result = simulate(self.build(p), **self.settings)
+            result = simulate(self.build(p), settings=self.settings, **self.options)
             return {r: float(f(result)) for r, f in self.responses.items()}, {}
         variables = None if self.gradients is True else self.gradients
         sens = sensitivities(self.build, p, self.responses, method=self.method,
-                             variables=variables, **self.settings)
+                             variables=variables, settings=self.settings, **self.options)
         return dict(sens.values), {r: dict(g) for r, g in sens.gradients.items()}
 
     def __call__(self, p: dict) -> dict:
