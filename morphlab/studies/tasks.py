@@ -1,4 +1,4 @@
-"""What a sweep runs in a worker: the task, the batch job around it, and the executors.
+"""What a sweep runs in a worker: the task and the batch job around it.
 
 A task is either a :class:`SimulationTask` (a parametric model, its responses and the run's
 settings, optionally with gradients) or any function ``p -> dict`` of response values. It
@@ -10,10 +10,8 @@ so one bad design never costs its neighbours.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import dataclasses
 import inspect
-import os
 import pickle
 import threading
 import time
@@ -24,6 +22,7 @@ from ..sensitivity.api import sensitivities
 from ..solve.settings import Settings
 from ..solve.timeloop import simulate
 from ..warmup import warmup
+from .identity import callable_identity, state
 from .sweep_result import FAILED, OK
 
 # Keyword arguments a task sets itself (or that make no sense in a worker).
@@ -130,6 +129,18 @@ class SimulationTask:
                              variables=variables, settings=self.settings, **self.options)
         return dict(sens.values), {r: dict(g) for r, g in sens.gradients.items()}
 
+    def identity(self) -> dict:
+        """What decides this task's rows, as JSON data (:mod:`.identity`): the build and
+        response functions (qualified names and code fingerprints), the settings and other
+        options, the gradients and the method. A sweep checkpoint records it and gives its
+        rows only to a task of the same identity."""
+        return {"kind": "SimulationTask", "build": callable_identity(self.build),
+                "responses": {r: callable_identity(f) for r, f in self.responses.items()},
+                "gradients": self.gradients, "method": state(self.method),
+                "settings": {f.name: state(getattr(self.settings, f.name))
+                             for f in dataclasses.fields(self.settings)},
+                "options": {k: state(v) for k, v in self.options.items()}}
+
     def __call__(self, p: dict) -> dict:
         """Response values of the design ``p`` (a task is also a plain function)."""
         return self.evaluate(p)[0]
@@ -215,52 +226,3 @@ def run_batch(payload, batch: list[tuple[int, dict]]) -> list[tuple[int, dict]]:
         row["wall_time"] = time.perf_counter() - start
         rows.append((index, row))
     return rows
-
-
-# -------------------------------------------------------------------------------- executors
-class SerialExecutor(cf.Executor):
-    """Runs each job at once in the calling process (``executor="serial"``)."""
-
-    _max_workers = 1
-
-    def submit(self, fn, /, *args, **kwargs):
-        future = cf.Future()
-        try:
-            future.set_result(fn(*args, **kwargs))
-        except BaseException as exc:
-            future.set_exception(exc)
-        return future
-
-
-def make_executor(executor) -> tuple[cf.Executor, bool]:
-    """``(executor, owned)``: a process pool of ``os.cpu_count()`` workers for ``None``, the
-    serial executor for ``"serial"``, any concurrent.futures Executor as given."""
-    if executor is None:
-        return cf.ProcessPoolExecutor(max_workers=os.cpu_count() or 1), True
-    if executor == "serial":
-        return SerialExecutor(), True
-    if isinstance(executor, cf.Executor):
-        return executor, False
-    raise StudyError(f"executor must be None (a local process pool), 'serial' or a "
-                     f"concurrent.futures.Executor (e.g. a Dask client.get_executor()), got "
-                     f"{executor!r}")
-
-
-def worker_count(executor) -> int:
-    """Jobs the executor runs at once: its processes, or a Dask cluster's threads."""
-    client = getattr(executor, "_client", None)
-    if client is not None and hasattr(client, "nthreads"):
-        return max(1, sum(client.nthreads().values()))
-    return max(1, int(getattr(executor, "_max_workers", None) or os.cpu_count() or 1))
-
-
-def in_process(executor) -> bool:
-    return isinstance(executor, SerialExecutor | cf.ThreadPoolExecutor)
-
-
-def lost_worker(exc: BaseException) -> bool:
-    """True for the errors of a job whose worker died: a broken process pool, a Dask
-    ``KilledWorker``, a cancelled job."""
-    names = {"KilledWorker", "CancelledError", "FutureCancelledError"}
-    return isinstance(exc, cf.BrokenExecutor | cf.CancelledError) or any(
-        t.__name__ in names for t in type(exc).__mro__)
