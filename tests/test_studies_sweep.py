@@ -159,7 +159,7 @@ def test_no_retries_reports_the_designs_in_flight(tmp_path):
     failed = [i for i in range(8) if out.status[i] == "failed"]
     assert 3 in failed and task.calls(3.0) == 1
     for i in failed:
-        assert "worker lost" in out.errors[i] and "BrokenProcessPool" in out.errors[i]
+        assert "worker died" in out.errors[i] and "BrokenProcessPool" in out.errors[i]
     for i in set(range(8)) - set(failed):
         assert out.values["twice"][i] == 2.0 * i
 
@@ -168,7 +168,8 @@ def test_a_design_that_always_kills_fails_after_the_retries(tmp_path):
     task = Killer(tmp_path, kill={5.0}, times=100)
     out = sweep(task, DESIGNS_1D, batch_size=2, retries=2)
     assert [i for i in range(8) if out.status[i] == "failed"] == [5]
-    assert "worker lost" in out.errors[5] and "2 rerun(s)" in out.errors[5]
+    assert "worker died" in out.errors[5] and "3 time(s), 2 of them alone" in out.errors[5]
+    assert "retries=2" in out.errors[5]
     assert task.calls(5.0) == 3  # the first run and two reruns alone
     assert np.isnan(out.values["twice"][5])
     np.testing.assert_array_equal(np.delete(out.values["twice"], 5), 2.0 * np.delete(

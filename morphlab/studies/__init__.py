@@ -4,6 +4,7 @@ comparisons, design optimization (:mod:`.optimize`, :mod:`.problem`) and first-o
 uncertainty propagation (:mod:`.uncertainty`)."""
 
 from ..errors import StudyError
+from .checkpoint import CheckpointWarning
 from .optimize import FREE_METHODS, GRADIENT_METHODS, optimize
 from .optimize_result import History, OptimizationResult
 from .problem import Constraint, Problem
@@ -17,8 +18,8 @@ from .samplers import (
     sobol,
     uniform,
 )
-from .sweep import sweep
-from .sweep_result import SweepResult
+from .sweep import sweep, sweep_iter
+from .sweep_result import SweepAborted, SweepResult, SweepRow
 from .tasks import SimulationTask
 from .timing import interleaved_times, median_time
 from .uncertainty import (
@@ -31,9 +32,11 @@ from .uncertainty import (
 )
 
 __all__ = [
-    "FREE_METHODS", "GRADIENT_METHODS", "Constraint", "History", "LinearizationCheck",
-    "OptimizationResult", "Problem", "SimulationTask", "StudyError", "SweepResult",
+    "FREE_METHODS", "GRADIENT_METHODS", "CheckpointWarning", "Constraint", "History",
+    "LinearizationCheck", "OptimizationResult", "Problem", "SimulationTask", "StudyError",
+    "SweepAborted", "SweepResult", "SweepRow",
     "UncertaintyResult", "axis_perturbations", "correlated_normal", "exceedance", "fosm",
     "full_factorial", "halton", "interleaved_times", "latin_hypercube", "linearization_check",
-    "median_time", "monte_carlo", "normal", "optimize", "sobol", "sweep", "uniform",
+    "median_time", "monte_carlo", "normal", "optimize", "sobol", "sweep", "sweep_iter",
+    "uniform",
 ]

@@ -10,7 +10,7 @@ Running on a cluster with Dask (``pip install 'morphlab[dask]'``)::
 
     from dask.distributed import Client
     client = Client("tcp://scheduler:8786")        # a running scheduler; or Client() locally
-    table = sweep(task, designs, executor=client.get_executor())
+    table = sweep(task, designs, executor=client)  # or client.get_executor()
 
 * A batch scheduler (SLURM, PBS, SGE, ...) starts the workers with ``dask-jobqueue``, e.g.
   ``SLURMCluster(cores=1, processes=1, memory="2GB"); cluster.scale(jobs=32)``, then
@@ -29,45 +29,51 @@ Running on a cluster with Dask (``pip install 'morphlab[dask]'``)::
   that is still starting its workers is used as they arrive.
 * The task travels as bytes (cloudpickle), and the workers need morphlab and whatever the task
   imports, in the same versions as the client.
+* Jobs are pinned to a worker, one per thread. A design whose worker died (a crash in native
+  code, the out-of-memory killer, a lost node) is run again alone on one worker while the
+  others go on, up to ``retries`` times; then its row fails with the reason. Dask's own
+  reruns of a job whose worker died (``distributed.scheduler.allowed-failures``) do not
+  apply: each death costs one attempt. (An executor made with ``workers=`` or
+  ``resources=`` of its own, ``client.get_executor(resources=...)``, keeps Dask's
+  placement and reruns instead, and a design lost there is rerun alone on the cluster.)
+* A cluster that has no workers (all lost, or not started yet) is waited for
+  ``worker_timeout`` seconds; then :class:`~.sweep_result.SweepAborted` (a StudyError)
+  carries the rows finished so far. Give adaptive clusters behind a batch queue a timeout
+  as long as the queue's wait.
 
 Failures stay in their row: a design whose task raises gets status ``"failed"`` and the
 exception's type and text (for a failed run also the time and step). A design whose worker
-died (a crash in native code, the out-of-memory killer, a lost node) is rerun alone, so the
-culprit is known, up to ``retries`` times.
+died is rerun alone, so the culprit is known, up to ``retries`` times (on a local process
+pool, alone in the pool: one crashed process breaks all of it).
+
+Rows stream: :func:`sweep_iter` yields each design's row as it finishes, on every executor;
+:func:`sweep` collects them into the table, in the order given. A checkpoint
+(:mod:`.checkpoint`) records the task's identity and every finished row, appended as it
+finishes; a sweep given the same file resumes, running only the designs without an
+``"ok"`` row there, and refuses a file written by another task.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import math
 import os
-import time
-from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from ..errors import StudyError
-from .sweep_result import FAILED, OK, SweepResult, assemble, design_table, rows_of
-from .tasks import (
-    describe,
-    ensure_warm,
-    in_process,
-    lost_worker,
-    make_executor,
-    run_batch,
-    serialize,
-    worker_count,
-)
+from .checkpoint import check_identity, matched, read
+from .identity import as_json, task_identity
+from .scheduler import Run, runs_in_process
+from .sweep_result import SweepResult, SweepRow, assemble, design_table
+from .tasks import serialize
 
-MAX_BATCH = 16
-BATCHES_PER_WORKER = 4
-WORKERS_REFRESH_S = 1.0
+WORKER_TIMEOUT_S = 300.0
 
 
 def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkpoint=None,
-          progress: bool | Callable[[int, int], object] = False, retries: int = 2
-          ) -> SweepResult:
+          progress: bool | Callable[[int, int], object] = False, retries: int = 2,
+          worker_timeout: float = WORKER_TIMEOUT_S) -> SweepResult:
     """Run ``task`` for every design and collect the rows in a table.
 
     Parameters
@@ -77,21 +83,27 @@ def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkp
         of responses of a parametric model) or any function ``p -> dict`` of response values.
     designs : list of dict, dict of columns, or pandas DataFrame
         The designs, one per row (e.g. from :mod:`morphlab.studies.samplers`).
-    executor : None, "serial" or concurrent.futures.Executor
+    executor : None, "serial", concurrent.futures.Executor or distributed.Client
         ``None``: a local process pool of ``os.cpu_count()`` processes (closed at the end);
-        ``"serial"``: in this process; or any Executor, e.g. ``client.get_executor()`` of a
-        Dask client (module docstring) or a ``ProcessPoolExecutor`` of your own.
+        ``"serial"``: in this process; or any Executor, e.g. a ``ProcessPoolExecutor`` of your
+        own, or a Dask client (module docstring) or its ``client.get_executor()``.
     batch_size : int, optional
         Designs per job; default about four jobs per worker, at most 16 designs each.
     checkpoint : str or os.PathLike, optional
-        A file that holds the finished rows (rewritten atomically after every batch, a
-        :meth:`SweepResult.save` file). If it exists, designs with an ``"ok"`` row in it
-        (same values, exactly) are not run again; failed ones are.
+        A file that records the task and every finished row (:mod:`.checkpoint`, appended as
+        rows finish). If it exists, designs with an ``"ok"`` row there (bitwise the same
+        values) are not run again, failed ones are; a file written by another task (other
+        responses, settings, gradients, build, variables) raises a StudyError naming what
+        differs. :meth:`SweepResult.load` reads it.
     progress : bool or callable
-        Print a progress bar, or call ``progress(n_done, n_total)`` after every batch.
+        Print a progress bar, or call ``progress(n_done, n_total)`` as jobs finish.
     retries : int
-        Reruns of a design whose worker died while it was in flight (each alone, so that a
-        design that kills its worker is found); after that its row fails with the reason.
+        Reruns of a design whose worker died while it was in flight (each alone in its place,
+        so that a design that kills its worker is found); after that its row fails with the
+        reason.
+    worker_timeout : float
+        Seconds [s] a Dask cluster without any worker is waited for before the sweep stops
+        with :class:`~.sweep_result.SweepAborted`.
 
     Returns
     -------
@@ -101,26 +113,92 @@ def sweep(task, designs, *, executor=None, batch_size: int | None = None, checkp
     Raises
     ------
     StudyError
-        Bad designs, executor, batch size, retries or progress; a task that cannot be sent
-        to worker processes.
+        Bad designs, executor, batch size, retries, timeout or progress; a task that cannot
+        be sent to worker processes; a checkpoint of another task or not a checkpoint.
+    SweepAborted
+        A Dask cluster without workers for ``worker_timeout`` seconds; ``partial`` holds the
+        rows finished so far.
     """
-    variables, table = design_table(designs)
-    _check_options(task, batch_size, retries, progress)
-    ex, owned = make_executor(executor)
-    run = None
+    run = _prepare(task, designs, executor, batch_size, checkpoint, progress, retries,
+                   worker_timeout)
+    rows = run.stream()
     try:
-        payload = task if in_process(ex) else serialize(task)
-        rows = _resumed(checkpoint, variables, table)
-        ensure_warm()  # the kernels are in the cache before the workers look for them
-        run = _Run(ex, payload, variables, table, rows, retries, checkpoint, progress)
-        run.execute(batch_size)
+        for _ in rows:
+            pass  # every row is kept in run.rows as it finishes
     finally:
-        for pool in ([ex] if owned else []) + (run.spare if run else []):
-            pool.shutdown(wait=True, cancel_futures=True)
-    return assemble(variables, table, rows)
+        rows.close()
+    return assemble(run.variables, run.table, run.rows)
 
 
-def _check_options(task, batch_size, retries, progress) -> None:
+def sweep_iter(task, designs, *, executor=None, batch_size: int | None = None,
+               checkpoint=None, progress: bool | Callable[[int, int], object] = False,
+               retries: int = 2, worker_timeout: float = WORKER_TIMEOUT_S
+               ) -> Iterator[tuple[int, SweepRow]]:
+    """Run ``task`` for every design and yield each design's row as it finishes.
+
+    The same arguments, checks and rows as :func:`sweep` (which collects these rows); the
+    arguments are checked, and the checkpoint read, when it is called.
+
+    Yields
+    ------
+    index : int
+        The design's position in ``designs``.
+    row : SweepRow
+        Its outcome. Rows found in the checkpoint come first (``row.resumed``), then the
+        others in the order they finish (the rows of one job together).
+
+    Notes
+    -----
+    Stopping early (``break``, an exception in the loop) leaves the generator open until it
+    is closed or collected; ``with contextlib.closing(sweep_iter(...)) as rows:`` closes it
+    (jobs still waiting are cancelled, a pool of its own shut down) at once.
+    """
+    run = _prepare(task, designs, executor, batch_size, checkpoint, progress, retries,
+                   worker_timeout)
+    return _stream(run)
+
+
+def _stream(run: Run) -> Iterator[tuple[int, SweepRow]]:
+    resumed = [(i, r) for i, r in enumerate(run.rows) if r is not None]
+    for i, row in resumed:
+        yield i, _row(run, i, row, resumed=True)
+    rows = run.stream()
+    try:
+        for i, row in rows:
+            yield i, _row(run, i, row)
+    finally:
+        rows.close()
+
+
+def _row(run: Run, i: int, row: dict, resumed: bool = False) -> SweepRow:
+    return SweepRow(dict(zip(run.variables, map(float, run.table[i]))), row["status"],
+                    dict(row["values"]), {r: dict(g) for r, g in row["gradients"].items()},
+                    row["error"], row["wall_time"], resumed)
+
+
+def _prepare(task, designs, executor, batch_size, checkpoint, progress, retries,
+             worker_timeout) -> Run:
+    """The checks of every argument, the task as it travels and the rows of the checkpoint:
+    a :class:`Run` ready to start."""
+    variables, table = design_table(designs)
+    _check_options(task, batch_size, retries, progress, worker_timeout, checkpoint)
+    payload = task if runs_in_process(executor) else serialize(task)
+    rows, file_variables, identity = [None] * len(table), None, None
+    if checkpoint is not None:
+        identity = as_json(task_identity(task))
+        if os.path.exists(checkpoint):
+            header, records = read(checkpoint, stacklevel=4)
+            check_identity(checkpoint, header, variables, identity)
+            rows, file_variables = matched(header, records, variables, table), header[
+                "variables"]
+    report = progress if callable(progress) else (_bar if progress else None)
+    return Run(executor=executor, payload=payload, variables=variables, table=table,
+               rows=rows, batch_size=batch_size, retries=int(retries),
+               worker_timeout=float(worker_timeout), progress=report, checkpoint=checkpoint,
+               file_variables=file_variables, identity=identity)
+
+
+def _check_options(task, batch_size, retries, progress, worker_timeout, checkpoint) -> None:
     if not callable(task):
         raise StudyError(f"task must be a SimulationTask or a function p -> dict, got {task!r}")
     if batch_size is not None and (not isinstance(batch_size, int | np.integer)
@@ -131,123 +209,14 @@ def _check_options(task, batch_size, retries, progress) -> None:
     if not (isinstance(progress, bool) or callable(progress)):
         raise StudyError(f"progress must be True, False or a function (done, total), got "
                          f"{progress!r}")
-
-
-def _resumed(checkpoint, variables, table) -> list:
-    """One slot per design: the ``"ok"`` row of the checkpoint with the same values, or None."""
-    rows = [None] * len(table)
-    if checkpoint is None or not os.path.exists(checkpoint):
-        return rows
-    done = SweepResult.load(checkpoint)
-    if sorted(done.variables) != sorted(variables):
-        raise StudyError(f"checkpoint {os.fspath(checkpoint)!r} holds designs of "
-                         f"{done.variables}, these have {variables}: use another file")
-    order = [done.variables.index(v) for v in variables]
-    found = {tuple(done.designs[i, order]): row for i, row in enumerate(rows_of(done))
-             if row["status"] == OK}
-    for i, design in enumerate(table):
-        rows[i] = found.get(tuple(design))
-    return rows
-
-
-class _Run:
-    """The state of one sweep: jobs in flight, designs to isolate, rows so far."""
-
-    def __init__(self, ex, payload, variables, table, rows, retries, checkpoint,
-                 progress):
-        self.ex, self.payload, self.table, self.rows = ex, payload, table, rows
-        self.variables, self.retries, self.checkpoint = variables, retries, checkpoint
-        self.progress = progress if callable(progress) else (_bar if progress else None)
-        self.spare = []  # replacement pools this run created (closed at the end)
-        self.workers, self.asked = worker_count(ex), time.monotonic()
-        # A crash of one process breaks a whole process pool and fails every job in it: one
-        # job per process in flight (in-process executors run a job as it is submitted).
-        # Elsewhere a lost worker loses only its own jobs, and a second job queued per worker
-        # hides the round trip to the scheduler.
-        self.per_worker = 1 if isinstance(ex, cf.ProcessPoolExecutor) or in_process(ex) else 2
-        self.lost = {}  # design -> times its worker died under it
-        self.suspects = deque()
-        self.flight = {}  # future -> (executor, design indices)
-
-    def execute(self, batch_size: int | None) -> None:
-        todo = [i for i, r in enumerate(self.rows) if r is None]
-        if batch_size is None:
-            batch_size = min(MAX_BATCH, max(1, math.ceil(
-                len(todo) / (BATCHES_PER_WORKER * self.workers))))
-        queue = deque(todo[k:k + batch_size] for k in range(0, len(todo), batch_size))
-        self._report()
-        while queue or self.suspects or self.flight:
-            if not self.suspects:
-                window = self.per_worker * self._workers()
-                while queue and len(self.flight) < window:
-                    self._submit(queue.popleft())
-            elif not self.flight:  # alone in flight: if its worker dies, it is the culprit
-                self._submit([self.suspects.popleft()])
-            finished, _ = cf.wait(list(self.flight), return_when=cf.FIRST_COMPLETED)
-            for future in finished:
-                self._collect(future)
-            self._save()
-            self._report()
-
-    def _workers(self) -> int:
-        """The executor's workers, asked again at most once a second (a scheduler query)."""
-        now = time.monotonic()
-        if now - self.asked > WORKERS_REFRESH_S:
-            self.workers, self.asked = worker_count(self.ex), now
-        return self.workers
-
-    def _submit(self, indices: list[int]) -> None:
-        batch = [(i, dict(zip(self.variables, map(float, self.table[i])))) for i in indices]
-        self.flight[self.ex.submit(run_batch, self.payload, batch)] = (self.ex, indices)
-
-    def _collect(self, future) -> None:
-        ex, indices = self.flight.pop(future)
-        try:
-            out = future.result()
-        except Exception as exc:
-            if not lost_worker(exc):  # the job itself failed (not a design): all its rows
-                for i in indices:
-                    self.rows[i] = _failed(f"the job failed: {describe(exc)}")
-                return
-            self._replace(ex, exc)
-            for i in indices:
-                self._lost_under(i, exc)
-            return
-        for i, row in out:
-            self.rows[i] = row
-
-    def _lost_under(self, i: int, exc: BaseException) -> None:
-        self.lost[i] = self.lost.get(i, 0) + 1
-        if self.lost[i] > self.retries:
-            self.rows[i] = _failed(
-                f"worker lost ({describe(exc)}) while this design was in flight, "
-                f"{self.lost[i]} time(s); {self.retries} rerun(s) alone allowed (retries)")
-        elif self.lost[i] > 1:
-            self.suspects.appendleft(i)  # it was alone: finish it before the others
-        else:
-            self.suspects.append(i)
-
-    def _replace(self, ex, exc) -> None:
-        """A broken process pool is replaced by a fresh one of the same size (once)."""
-        if isinstance(exc, cf.BrokenExecutor) and ex is self.ex:
-            self.ex = cf.ProcessPoolExecutor(max_workers=self.workers)
-            self.spare.append(self.ex)
-
-    def _save(self) -> None:
-        if self.checkpoint is None:
-            return
-        done = [i for i, r in enumerate(self.rows) if r is not None]
-        if done:
-            assemble(self.variables, self.table[done], [self.rows[i] for i in done]).save(
-                self.checkpoint)
-
-    def _report(self) -> None:
-        if self.progress is not None:
-            self.progress(sum(r is not None for r in self.rows), len(self.rows))
-
-
-def _failed(error: str) -> dict:
-    return {"status": FAILED, "values": {}, "gradients": {}, "error": error, "wall_time": 0.0}
+    if (isinstance(worker_timeout, bool) or not isinstance(worker_timeout, int | float)
+            or not math.isfinite(worker_timeout) or worker_timeout <= 0):
+        raise StudyError(f"worker_timeout must be a finite number of seconds > 0, got "
+                         f"{worker_timeout!r}")
+    if checkpoint is not None and not isinstance(checkpoint, str | os.PathLike):
+        raise StudyError(f"checkpoint must be a file path or None, got {checkpoint!r}")
+    if checkpoint is not None and os.path.isdir(checkpoint):
+        raise StudyError(f"checkpoint {os.fspath(checkpoint)!r} is a folder: give a file path")
 
 
 def _bar(done: int, total: int) -> None:

@@ -170,7 +170,13 @@ class SweepResult:
 
     @classmethod
     def load(cls, path) -> SweepResult:
-        """Read a table written by :meth:`save`."""
+        """Read a table written by :meth:`save`, or the rows of a sweep checkpoint (each
+        design once, with its last record, in the order they finished)."""
+        if is_checkpoint(path):
+            from .checkpoint import load_rows
+
+            variables, designs, rows = load_rows(path)
+            return assemble(variables, designs, rows)
         arrays, meta = load_arrays(path)
         if meta.get("format") != SWEEP_FORMAT:
             raise StudyError(f"{path} is not a sweep table (format {meta.get('format')!r})")
@@ -181,6 +187,68 @@ class SweepResult:
         return cls(list(meta["variables"]), arrays["designs"], values, gradients,
                    arrays["status"].astype(object), [str(e) for e in arrays["errors"]],
                    arrays["wall_time"])
+
+
+def is_checkpoint(path) -> bool:
+    """True if ``path`` starts like a sweep checkpoint (:mod:`.checkpoint`)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+    except OSError:
+        return False
+    return head[9:].startswith(b'{"format":"morphlab-sweep-checkpoint"')
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """The outcome of one design, as :func:`~.sweep.sweep_iter` yields it.
+
+    Attributes
+    ----------
+    design : dict of str -> float
+        The design, as the task received it.
+    status : str
+        ``"ok"`` or ``"failed"``.
+    values : dict of str -> float
+        Response values (empty when failed).
+    gradients : dict of str -> dict of str -> float
+        ``gradients[r][v]``, d(response r)/d(variable v) (tasks with gradients only).
+    error : str
+        The exception's type and message of a failed design (``""`` when ok).
+    wall_time : float
+        Seconds the design took in its worker (its last attempt).
+    resumed : bool
+        True for a row read from the checkpoint instead of run.
+    """
+
+    design: dict
+    status: str
+    values: dict
+    gradients: dict
+    error: str
+    wall_time: float
+    resumed: bool = False
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+
+class SweepAborted(StudyError):
+    """A sweep stopped before every design finished (e.g. a Dask cluster without workers for
+    longer than ``worker_timeout``).
+
+    Attributes
+    ----------
+    partial : SweepResult
+        The rows finished so far, in the order given (also in the checkpoint, if any).
+    indices : (k,) int array
+        Their positions in the designs given.
+    """
+
+    def __init__(self, message: str, *, partial: SweepResult, indices: np.ndarray):
+        super().__init__(message)
+        self.partial, self.indices = partial, indices
 
 
 def assemble(variables: list[str], designs: np.ndarray, rows: list[dict]) -> SweepResult:

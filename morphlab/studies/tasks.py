@@ -1,4 +1,4 @@
-"""What a sweep runs in a worker: the task, the batch job around it, and the executors.
+"""What a sweep runs in a worker: the task and the batch job around it.
 
 A task is either a :class:`SimulationTask` (a parametric model, its responses and the run's
 settings, optionally with gradients) or any function ``p -> dict`` of response values. It
@@ -10,9 +10,8 @@ so one bad design never costs its neighbours.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
+import dataclasses
 import inspect
-import os
 import pickle
 import threading
 import time
@@ -23,18 +22,20 @@ from ..sensitivity.api import sensitivities
 from ..solve.settings import Settings
 from ..solve.timeloop import simulate
 from ..warmup import warmup
+from .identity import callable_identity, state
 from .sweep_result import FAILED, OK
 
 # Keyword arguments a task sets itself (or that make no sense in a worker).
 _RESERVED = {"model", "build", "p0", "responses", "variables", "method", "settings",
              "progress", "observer", "memmap"}
+_FIELDS = {f.name for f in dataclasses.fields(Settings)}
 
 
 def _allowed(gradients) -> set[str]:
     fn = sensitivities if gradients else simulate
     params = inspect.signature(fn).parameters
     own = {k for k, p in params.items() if p.kind is p.KEYWORD_ONLY}
-    return (own | {f.name for f in Settings.__dataclass_fields__.values()}) - _RESERVED
+    return (own | _FIELDS) - _RESERVED
 
 
 class SimulationTask:
@@ -47,26 +48,36 @@ class SimulationTask:
         :func:`morphlab.sensitivities`).
     responses : dict of str -> callable
         ``f(result) -> float`` (see :mod:`morphlab.responses`).
-    settings : dict or Settings
-        The run's keyword arguments: the fields of :class:`morphlab.Settings` (``t_end``,
-        ``dt`` [s], ...) and the other keyword options of :func:`morphlab.simulate` (or of
-        :func:`morphlab.sensitivities` with gradients), e.g. ``max_halvings``.
+    settings : Settings or dict
+        The run's options: a :class:`morphlab.Settings`, or a dict of its fields (``t_end``,
+        ``dt`` [s], ...) that may also hold the other keyword options of
+        :func:`morphlab.simulate` (``max_halvings``, ``store``, ``q0``, ``v0``) or, with
+        gradients, of :func:`morphlab.sensitivities` (``step``, ``refine``, ``store``).
     gradients : bool or list of str
         ``False``: values only (:func:`morphlab.simulate`); ``True``: derivatives by every
         design variable; a list: by these variables (:func:`morphlab.sensitivities`).
     method : str or strategy
         Sensitivity method (with gradients), as for :func:`morphlab.sensitivities`.
+    options : dict, optional
+        Those other keyword options, when ``settings`` is a Settings object.
+
+    Attributes
+    ----------
+    settings : Settings
+        The run's settings, validated at construction and passed on as ``settings=``.
+    options : dict
+        The other keyword options (never fields of Settings).
 
     Raises
     ------
     StudyError
-        A build or response that is not callable, a setting neither function takes, a
+        A build or response that is not callable, an option neither function takes, a
         setting value :class:`morphlab.Settings` refuses.
     """
 
     def __init__(self, build: Callable[[dict], object], responses: Mapping[str, Callable],
                  settings: Mapping | Settings, *, gradients: bool | list[str] = False,
-                 method="direct"):
+                 method="direct", options: Mapping | None = None):
         if not callable(build):
             raise StudyError(f"build must be a function p -> Model, got {build!r}")
         if not isinstance(responses, Mapping) or not responses:
@@ -80,36 +91,55 @@ class SimulationTask:
                              f"{gradients!r}")
         self.build, self.responses, self.method = build, dict(responses), method
         self.gradients = gradients if isinstance(gradients, bool) else list(gradients)
-        self.settings = self._checked(settings)
+        self.settings, self.options = self._checked(settings, options)
 
-    def _checked(self, settings) -> dict:
+    def _checked(self, settings, options) -> tuple[Settings, dict]:
+        """The Settings object (normalized once, here) and the other options."""
+        if options is not None and not isinstance(options, Mapping):
+            raise StudyError(f"options must be a dict or None, got {options!r}")
         if isinstance(settings, Settings):
-            return {"settings": settings}
-        if not isinstance(settings, Mapping):
+            given, base = dict(options or {}), settings
+        elif isinstance(settings, Mapping):
+            given, base = {**settings, **(options or {})}, None
+        else:
             raise StudyError(f"settings must be a dict or a Settings, got {settings!r}")
-        allowed = _allowed(self.gradients)
-        unknown = sorted(set(settings) - allowed)
+        fn = "sensitivities" if self.gradients else "simulate"
+        extra = _allowed(self.gradients) - _FIELDS
+        unknown = sorted(set(given) - extra - (_FIELDS if base is None else set()))
         if unknown:
-            fn = "sensitivities" if self.gradients else "simulate"
+            valid = sorted(extra | (_FIELDS if base is None else set()))
             raise StudyError(f"settings {unknown} are not options of morphlab.{fn}; valid: "
-                             f"{sorted(allowed)}")
-        fields = {k: v for k, v in settings.items() if k in Settings.__dataclass_fields__}
+                             f"{valid}" + ("" if base is None else " (the fields of Settings "
+                                           "go in the Settings object)"))
+        fields = {k: v for k, v in given.items() if k in _FIELDS}
         try:
-            Settings.of(**fields)
+            out = Settings.of(base, **fields)
         except Exception as exc:
             raise StudyError(f"settings refused: {exc}") from exc
-        return dict(settings)
+        return out, {k: v for k, v in given.items() if k not in _FIELDS}
 
     def evaluate(self, p: dict) -> tuple[dict, dict]:
         """``(values, gradients)`` of the design ``p``: ``{r: float}``,
         ``{r: {v: float}}`` (empty without gradients)."""
         if not self.gradients:
-            result = simulate(self.build(p), **self.settings)
+            result = simulate(self.build(p), settings=self.settings, **self.options)
             return {r: float(f(result)) for r, f in self.responses.items()}, {}
         variables = None if self.gradients is True else self.gradients
         sens = sensitivities(self.build, p, self.responses, method=self.method,
-                             variables=variables, **self.settings)
+                             variables=variables, settings=self.settings, **self.options)
         return dict(sens.values), {r: dict(g) for r, g in sens.gradients.items()}
+
+    def identity(self) -> dict:
+        """What decides this task's rows, as JSON data (:mod:`.identity`): the build and
+        response functions (qualified names and code fingerprints), the settings and other
+        options, the gradients and the method. A sweep checkpoint records it and gives its
+        rows only to a task of the same identity."""
+        return {"kind": "SimulationTask", "build": callable_identity(self.build),
+                "responses": {r: callable_identity(f) for r, f in self.responses.items()},
+                "gradients": self.gradients, "method": state(self.method),
+                "settings": {f.name: state(getattr(self.settings, f.name))
+                             for f in dataclasses.fields(self.settings)},
+                "options": {k: state(v) for k, v in self.options.items()}}
 
     def __call__(self, p: dict) -> dict:
         """Response values of the design ``p`` (a task is also a plain function)."""
@@ -196,52 +226,3 @@ def run_batch(payload, batch: list[tuple[int, dict]]) -> list[tuple[int, dict]]:
         row["wall_time"] = time.perf_counter() - start
         rows.append((index, row))
     return rows
-
-
-# -------------------------------------------------------------------------------- executors
-class SerialExecutor(cf.Executor):
-    """Runs each job at once in the calling process (``executor="serial"``)."""
-
-    _max_workers = 1
-
-    def submit(self, fn, /, *args, **kwargs):
-        future = cf.Future()
-        try:
-            future.set_result(fn(*args, **kwargs))
-        except BaseException as exc:
-            future.set_exception(exc)
-        return future
-
-
-def make_executor(executor) -> tuple[cf.Executor, bool]:
-    """``(executor, owned)``: a process pool of ``os.cpu_count()`` workers for ``None``, the
-    serial executor for ``"serial"``, any concurrent.futures Executor as given."""
-    if executor is None:
-        return cf.ProcessPoolExecutor(max_workers=os.cpu_count() or 1), True
-    if executor == "serial":
-        return SerialExecutor(), True
-    if isinstance(executor, cf.Executor):
-        return executor, False
-    raise StudyError(f"executor must be None (a local process pool), 'serial' or a "
-                     f"concurrent.futures.Executor (e.g. a Dask client.get_executor()), got "
-                     f"{executor!r}")
-
-
-def worker_count(executor) -> int:
-    """Jobs the executor runs at once: its processes, or a Dask cluster's threads."""
-    client = getattr(executor, "_client", None)
-    if client is not None and hasattr(client, "nthreads"):
-        return max(1, sum(client.nthreads().values()))
-    return max(1, int(getattr(executor, "_max_workers", None) or os.cpu_count() or 1))
-
-
-def in_process(executor) -> bool:
-    return isinstance(executor, SerialExecutor | cf.ThreadPoolExecutor)
-
-
-def lost_worker(exc: BaseException) -> bool:
-    """True for the errors of a job whose worker died: a broken process pool, a Dask
-    ``KilledWorker``, a cancelled job."""
-    names = {"KilledWorker", "CancelledError", "FutureCancelledError"}
-    return isinstance(exc, cf.BrokenExecutor | cf.CancelledError) or any(
-        t.__name__ in names for t in type(exc).__mro__)
