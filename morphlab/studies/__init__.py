@@ -1,22 +1,32 @@
 """Stage 6, studies built on :func:`morphlab.simulate` and :func:`morphlab.sensitivities`:
 parameter studies on any executor (:mod:`.sweep`, :mod:`.tasks`, :mod:`.samplers`), timing
-comparisons, design optimization (:mod:`.optimize`, :mod:`.problem`) and first-order
-uncertainty propagation (:mod:`.uncertainty`)."""
+comparisons, design optimization (:mod:`.optimize`, :mod:`.problem`), uncertainty
+propagation (:mod:`.uncertainty`, :mod:`.propagate`: FOSM, Monte Carlo, FORM, importance
+sampling over :mod:`.distributions`) and Sobol' indices (:mod:`.indices`)."""
 
 from ..errors import StudyError
+from .distributions import JointDistribution
+from .form import SearchOptions
+from .function_task import FunctionTask
+from .indices import SobolIndices, sobol_indices
 from .optimize import FREE_METHODS, GRADIENT_METHODS, optimize
 from .optimize_result import History, OptimizationResult
 from .problem import Constraint, Problem
+from .propagate import propagate
+from .reliability import LimitState, ReliabilityResult, form, importance_sampling
 from .samplers import (
     correlated_normal,
     full_factorial,
     halton,
+    iman_conover,
     latin_hypercube,
     monte_carlo,
     normal,
+    sample,
     sobol,
     uniform,
 )
+from .statistics import SampleResult, binomial_interval, mean_std
 from .sweep import sweep
 from .sweep_result import SweepResult
 from .tasks import SimulationTask
@@ -31,9 +41,12 @@ from .uncertainty import (
 )
 
 __all__ = [
-    "FREE_METHODS", "GRADIENT_METHODS", "Constraint", "History", "LinearizationCheck",
-    "OptimizationResult", "Problem", "SimulationTask", "StudyError", "SweepResult",
-    "UncertaintyResult", "axis_perturbations", "correlated_normal", "exceedance", "fosm",
-    "full_factorial", "halton", "interleaved_times", "latin_hypercube", "linearization_check",
-    "median_time", "monte_carlo", "normal", "optimize", "sobol", "sweep", "uniform",
+    "FREE_METHODS", "GRADIENT_METHODS", "Constraint", "FunctionTask", "History",
+    "JointDistribution", "LimitState", "LinearizationCheck", "OptimizationResult", "Problem",
+    "ReliabilityResult", "SampleResult", "SearchOptions", "SimulationTask", "SobolIndices",
+    "StudyError", "SweepResult", "UncertaintyResult", "axis_perturbations",
+    "binomial_interval", "correlated_normal", "exceedance", "form", "fosm", "full_factorial",
+    "halton", "iman_conover", "importance_sampling", "interleaved_times", "latin_hypercube",
+    "linearization_check", "mean_std", "median_time", "monte_carlo", "normal", "optimize",
+    "propagate", "sample", "sobol", "sobol_indices", "sweep", "uniform",
 ]
