@@ -8,12 +8,13 @@ from ..errors import StudyError
 from .distributions import JointDistribution
 from .form import SearchOptions
 from .function_task import FunctionTask
+from .importance import importance_sampling
 from .indices import SobolIndices, sobol_indices
 from .optimize import FREE_METHODS, GRADIENT_METHODS, optimize
 from .optimize_result import History, OptimizationResult
 from .problem import Constraint, Problem
 from .propagate import propagate
-from .reliability import LimitState, ReliabilityResult, form, importance_sampling
+from .reliability import LimitState, ReliabilityResult, form, series_probability
 from .samplers import (
     correlated_normal,
     full_factorial,
@@ -48,5 +49,6 @@ __all__ = [
     "binomial_interval", "correlated_normal", "exceedance", "form", "fosm", "full_factorial",
     "halton", "iman_conover", "importance_sampling", "interleaved_times", "latin_hypercube",
     "linearization_check", "mean_std", "median_time", "monte_carlo", "normal", "optimize",
-    "propagate", "sample", "sobol", "sobol_indices", "sweep", "uniform",
+    "propagate", "sample", "series_probability", "sobol", "sobol_indices", "sweep",
+    "uniform",
 ]

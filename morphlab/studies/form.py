@@ -29,7 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import StudyError
+
 ARMIJO = 1e-4  # sufficient decrease of the merit function, a fraction of the first-order one
+ROUND_OFF = 1e-12  # a predicted merit decrease this small (relative) is below round-off
 
 
 @dataclass
@@ -46,12 +49,28 @@ class SearchOptions:
         HL-RF iterations.
     max_halvings : int
         Step halvings of one line search.
+    mirror : bool
+        Search again from the mirror image ``-u*`` of each design point, for a second failure
+        mode (:mod:`.reliability`).
     """
 
     tol_g: float = 1e-6
     tol_u: float = 1e-6
     max_iter: int = 100
     max_halvings: int = 20
+    mirror: bool = False
+
+    def __post_init__(self):
+        for name in ("tol_g", "tol_u"):
+            v = getattr(self, name)
+            if not (isinstance(v, float) and 0.0 < v < 1.0):
+                raise StudyError(f"SearchOptions.{name} must be a float in (0, 1), got {v!r}")
+        for name in ("max_iter", "max_halvings"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise StudyError(f"SearchOptions.{name} must be an integer >= 1, got {v!r}")
+        if not isinstance(self.mirror, bool):
+            raise StudyError(f"SearchOptions.mirror must be True or False, got {self.mirror!r}")
 
 
 @dataclass
@@ -112,7 +131,11 @@ def search(u0: np.ndarray, options: SearchOptions):
                 break
             step *= 0.5
         else:
-            state.message = f"the line search found no decrease at iteration {it}"
+            if abs(slope) <= ROUND_OFF * max(merit, 1.0):  # nothing left above round-off
+                state.converged = True
+                state.message = f"converged to round-off in {it} iterations"
+            else:
+                state.message = f"the line search found no decrease at iteration {it}"
             return state
         u, (g, G) = trial, out
         state.u, state.g, state.grad, state.iterations = u, g, G, it + 1

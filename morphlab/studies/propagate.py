@@ -30,7 +30,8 @@ from ..errors import StudyError
 from .distributions import joint
 from .form import SearchOptions
 from .function_task import values_only, with_gradients
-from .reliability import _check_fixed, _designs, form, importance_sampling
+from .importance import importance_sampling
+from .reliability import _check_fixed, _designs, form
 from .samplers import SAMPLERS, sample
 from .statistics import _check_confidence, check_allowables, sample_result
 from .sweep import sweep

@@ -1,5 +1,4 @@
-"""Reliability of responses under random variables: FORM with exact gradients, and
-importance sampling around its design points.
+"""Reliability of responses under random variables: FORM with exact gradients.
 
 A limit state is one side of an allowable: ``g = upper - r`` (failure ``r > upper``) or
 ``g = r - lower`` (failure ``r < lower``), in the standard normal space ``u`` of a
@@ -10,12 +9,15 @@ A limit state is one side of an allowable: ``g = upper - r`` (failure ``r > uppe
 * :func:`form`: the design point of every limit state by the iHL-RF search (:mod:`.form`),
   ``β``, ``P_f = Φ(-β)``, importance factors; the searches of all limit states advance
   together, each round's points in one :func:`~.sweep.sweep`.
-* :func:`importance_sampling`: ``n`` draws ``u = u* + v``, ``v ~ N(0, I)``, around each
-  design point; ``P_f = mean(1[g(u) <= 0] w(u))`` with ``w = φ(u) / φ(u - u*) =
-  exp(-u·u* + |u*|²/2)``, its standard error from the sample of ``1[g <= 0] w`` and the
-  coefficient of variation ``SE / P_f`` (e.g. Melchers & Beck, *Structural Reliability
-  Analysis and Prediction*, 3rd ed., Wiley 2018, §3.5). Unbiased for any design point; the
-  closer the FORM point is to the most likely failure region, the smaller the variance.
+* Two failure modes: a response that fails on both sides of its nominal behaviour (a norm
+  such as the largest node error) has a second design point roughly opposite the first.
+  With ``SearchOptions(mirror=True)`` each search is repeated from the mirror image ``-u*``
+  of its design point; a distinct second point is kept as a second mode, and ``P_f`` is that
+  of the series system of the two linearised modes, ``Φ(-β1) + Φ(-β2) - Φ2(-β1, -β2; ρ)``,
+  ``ρ = α1 · α2`` (e.g. Ditlevsen & Madsen, *Structural Reliability Methods*, Wiley 1996,
+  ch. 14).
+* :func:`~.importance.importance_sampling` checks and corrects ``P_f`` around the design
+  points.
 
 Both the probabilities below a lower and above an upper limit are disjoint events, so the
 exceedance probability of a two-sided allowable is their sum.
@@ -26,13 +28,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import ndtr, ndtri
+from scipy.special import ndtr
 
 from ..errors import StudyError
 from .distributions import joint
 from .form import SearchOptions, beta_of, importance_factors, search
-from .function_task import values_only, with_gradients
-from .statistics import _check_confidence, check_allowables
+from .function_task import with_gradients
+from .statistics import check_allowables
 from .sweep import sweep
 from .tasks import make_executor
 
@@ -50,7 +52,7 @@ class LimitState:
         Reliability index (distance of the design point from the origin in ``u``, negative
         when the median design fails).
     p_form : float
-        ``Φ(-β)``.
+        ``Φ(-β)``, or the series-system probability of both modes when a second was found.
     design_point : dict[str, float]
         The design point in the variables (variable units).
     u : ndarray, shape (d,)
@@ -60,9 +62,12 @@ class LimitState:
     importance : dict[str, float]
         Importance factors ``γ_i²`` of the variables (sum 1; :func:`.form.importance_factors`).
     iterations, runs : int
-        HL-RF iterations and model runs of the search.
+        HL-RF iterations and model runs of the search (both searches with ``mirror``).
     converged : bool
     message : str
+    modes : list of dict
+        Every design point kept: ``u``, ``beta``, ``alpha``, ``design_point``,
+        ``importance``, ``converged``, ``message``; the first is the fields above.
     p_is, is_std_error, is_cov : float
         Importance-sampling estimate, its standard error and coefficient of variation (NaN
         before :func:`importance_sampling`).
@@ -85,6 +90,7 @@ class LimitState:
     runs: int
     converged: bool
     message: str
+    modes: list = field(default_factory=list)
     p_is: float = np.nan
     is_std_error: float = np.nan
     is_cov: float = np.nan
@@ -137,8 +143,8 @@ class ReliabilityResult:
     def table(self) -> str:
         """One line per limit state: β, FORM and importance-sampling probabilities."""
         head = ["limit state".ljust(28), "beta".rjust(9), "P FORM".rjust(11),
-                "P IS".rjust(11), "IS cov".rjust(8), "iter".rjust(5), "runs".rjust(5),
-                "  top importance"]
+                "P IS".rjust(11), "IS cov".rjust(8), "modes".rjust(6), "iter".rjust(5),
+                "runs".rjust(5), "  top importance"]
         lines = ["".join(head)]
         for (r, side), ls in self.limit_states.items():
             sign = ">" if side == "upper" else "<"
@@ -147,7 +153,7 @@ class ReliabilityResult:
                      f"{ls.p_form:11.3e}",
                      f"{ls.p_is:11.3e}" if ls.is_n else " " * 10 + "-",
                      f"{ls.is_cov:8.3f}" if ls.is_n else " " * 7 + "-",
-                     f"{ls.iterations:5d}", f"{ls.runs:5d}",
+                     f"{len(ls.modes):6d}", f"{ls.iterations:5d}", f"{ls.runs:5d}",
                      f"  {top} {ls.importance.get(top, np.nan):.3f}"
                      + ("" if ls.converged else f"  [{ls.message}]")]
             lines.append("".join(cells))
@@ -253,22 +259,31 @@ def form(task, distributions, allowables, *, fixed=None, start=None, executor=No
     ex, owned = make_executor(executor)
     try:
         evaluate = _Evaluator(task, dist, fixed, ex)
-        states = _run_searches(evaluate, dist, _limit_states(allowables), u0, options)
+        keys = _limit_states(allowables)
+        first = _run_searches(evaluate, dist, {key: u0 for key in keys}, options)
+        second = {}
+        if options.mirror:
+            starts = {key: -st.u for key, (st, _) in first.items()
+                      if st.grad is not None and np.linalg.norm(st.u) > 0}
+            second = _run_searches(evaluate, dist, starts, options)
     finally:
         if owned:
             ex.shutdown(wait=True, cancel_futures=True)
     result = ReliabilityResult(list(dist.names), allowables, {}, runs=evaluate.runs)
-    for (k, side, lim), (state, runs) in states.items():
-        result.limit_states[k, side] = _limit_state(dist, k, side, lim, state, runs)
+    for key in keys:
+        k, side, lim = key
+        result.limit_states[k, side] = _limit_state(dist, k, side, lim, *first[key],
+                                                    mirror=second.get(key))
     result._collect()
     return result
 
 
-def _run_searches(evaluate, dist, states, u0, options) -> dict:
-    """All searches in lock step: each round evaluates every pending point once."""
-    gens = {key: search(u0, options) for key in states}
+def _run_searches(evaluate, dist, starts: dict, options) -> dict:
+    """Searches from ``starts[key]``, all in lock step: each round evaluates every pending
+    point once. Returns ``{key: (SearchState, runs)}``."""
+    gens = {key: search(u0, options) for key, u0 in starts.items()}
     pending = {key: next(gen) for key, gen in gens.items()}
-    runs = dict.fromkeys(states, 0)
+    runs = dict.fromkeys(starts, 0)
     done = {}
     while pending:
         unique = {}
@@ -285,67 +300,53 @@ def _run_searches(evaluate, dist, states, u0, options) -> dict:
             except StopIteration as stop:
                 done[key] = (stop.value, runs[key])
                 del pending[key]
-    return {key: done[key] for key in states}
+    return {key: done[key] for key in starts}
 
 
-def _limit_state(dist, response, side, limit, state, runs) -> LimitState:
-    names = dist.names
-    if state.grad is None:
-        nan = np.full(len(names), np.nan)
-        return LimitState(response, side, limit, np.nan, np.nan, {}, state.u, nan, {},
-                          state.iterations, runs, False, state.message)
-    beta = beta_of(state)
+def _mode(dist, state) -> dict:
+    """A design point of a finished search."""
     alpha = -state.grad / np.linalg.norm(state.grad)
     gamma = importance_factors(alpha, dist.jacobian(state.u))
     x = dist.from_standard(state.u[None, :])[0]
-    return LimitState(response, side, limit, beta, float(ndtr(-beta)),
-                      dict(zip(names, x.tolist())), state.u.copy(), alpha,
-                      dict(zip(names, (gamma * gamma).tolist())), state.iterations, runs,
-                      state.converged, state.message)
+    return {"u": state.u.copy(), "beta": beta_of(state), "alpha": alpha,
+            "design_point": dict(zip(dist.names, x.tolist())),
+            "importance": dict(zip(dist.names, (gamma * gamma).tolist())),
+            "converged": state.converged, "message": state.message}
 
 
-def importance_sampling(task, distributions, result: ReliabilityResult, n: int, *,
-                        fixed=None, seed=0, executor=None, confidence: float = 0.95
-                        ) -> ReliabilityResult:
-    """Importance sampling around the design points of a FORM result (module docstring):
-    ``n`` draws per limit state, all limit states in one sweep (values only). Fills the
-    ``p_is``, ``is_*`` fields of each limit state and returns the result with
-    ``method="importance-sampling"``."""
-    dist = joint(distributions)
-    fixed = _check_fixed(fixed, dist.names)
-    confidence = _check_confidence(confidence)
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 2:
-        raise StudyError(f"n must be an integer >= 2 (draws per limit state), got {n!r}")
-    if list(result.variables) != list(dist.names):
-        raise StudyError(f"the FORM result is over {result.variables}, the distributions "
-                         f"over {dist.names}")
-    keys = [k for k, ls in result.limit_states.items() if np.all(np.isfinite(ls.u))
-            and ls.design_point]
-    if not keys:
-        raise StudyError("no limit state of the FORM result has a design point")
-    rng = np.random.default_rng(seed)
-    U = np.concatenate([result.limit_states[k].u + rng.standard_normal((n, len(dist)))
-                        for k in keys])
-    table = sweep(values_only(task), _designs(dist, fixed, dist.from_standard(U)),
-                  executor=executor)
-    z = float(ndtri(0.5 + confidence / 2.0))
-    for j, key in enumerate(keys):
-        ls = result.limit_states[key]
-        rows = slice(j * n, (j + 1) * n)
-        ok = np.asarray(table.ok[rows])
-        r = table.values[ls.response][rows][ok]
-        u = U[rows][ok]
-        fail = r > ls.limit if ls.side == "upper" else r < ls.limit
-        w = np.exp(-u @ ls.u + 0.5 * ls.u @ ls.u)
-        terms = np.where(fail, w, 0.0)
-        p = float(np.mean(terms)) if terms.size else np.nan
-        se = float(np.std(terms, ddof=1) / np.sqrt(terms.size)) if terms.size > 1 else np.nan
-        ls.p_is, ls.is_std_error = p, se
-        ls.is_cov = se / p if p > 0 else np.inf
-        ls.is_ci = (max(0.0, p - z * se), p + z * se)
-        ls.is_n, ls.is_failures, ls.is_failed_runs = int(ok.sum()), int(fail.sum()), \
-            int((~ok).sum())
-    result.runs += len(U)
-    result.method = "importance-sampling"
-    result._collect()
-    return result
+def series_probability(beta1: float, beta2: float, rho: float) -> float:
+    """``P(A1 ∪ A2)`` of two linearised modes ``A_k = {α_k · u >= β_k}`` with ``ρ = α1·α2``:
+    ``Φ(-β1) + Φ(-β2) - Φ2(-β1, -β2; ρ)``, the bivariate term by quadrature of
+    ``∫_{-∞}^{-β1} φ(x) Φ((-β2 - ρ x) / sqrt(1 - ρ²)) dx`` (accurate also in the far tails)."""
+    from scipy.integrate import quad
+
+    if rho >= 1.0 - 1e-12:
+        return float(ndtr(-min(beta1, beta2)))
+    s = np.sqrt(1.0 - rho * rho)
+    both, _ = quad(lambda x: np.exp(-0.5 * x * x) / np.sqrt(2 * np.pi)
+                   * ndtr((-beta2 - rho * x) / s), -np.inf, -beta1, epsabs=0.0,
+                   epsrel=1e-10, limit=200)
+    return float(ndtr(-beta1) + ndtr(-beta2) - both)
+
+
+def _limit_state(dist, response, side, limit, state, runs, mirror=None) -> LimitState:
+    if state.grad is None:
+        nan = np.full(len(dist), np.nan)
+        return LimitState(response, side, limit, np.nan, np.nan, {}, state.u, nan, {},
+                          state.iterations, runs, False, state.message)
+    modes = [_mode(dist, state)]
+    iterations = state.iterations
+    if mirror is not None:
+        other, more = mirror
+        runs += more
+        iterations += other.iterations
+        distinct = np.linalg.norm(other.u - state.u) > 1e-3 * max(np.linalg.norm(state.u), 1)
+        if other.grad is not None and other.converged and distinct:
+            modes.append(_mode(dist, other))
+            modes.sort(key=lambda m: m["beta"])
+    m = modes[0]
+    p = float(ndtr(-m["beta"])) if len(modes) == 1 else series_probability(
+        modes[0]["beta"], modes[1]["beta"], float(modes[0]["alpha"] @ modes[1]["alpha"]))
+    return LimitState(response, side, limit, m["beta"], p, m["design_point"], m["u"],
+                      m["alpha"], m["importance"], iterations, runs,
+                      all(md["converged"] for md in modes), state.message, modes)
