@@ -10,6 +10,7 @@ from .form import SearchOptions
 from .function_task import FunctionTask
 from .importance import importance_sampling
 from .indices import SobolIndices, sobol_indices
+from .multistart import MultiStartResult, multistart
 from .optimize import FREE_METHODS, GRADIENT_METHODS, optimize
 from .optimize_result import History, OptimizationResult
 from .problem import Constraint, Problem
@@ -48,7 +49,8 @@ __all__ = [
     "StudyError", "SweepResult", "UncertaintyResult", "axis_perturbations",
     "binomial_interval", "correlated_normal", "exceedance", "form", "fosm", "full_factorial",
     "halton", "iman_conover", "importance_sampling", "interleaved_times", "latin_hypercube",
-    "linearization_check", "mean_std", "median_time", "monte_carlo", "normal", "optimize",
+    "linearization_check", "mean_std", "median_time", "monte_carlo", "multistart",
+    "MultiStartResult", "normal", "optimize",
     "propagate", "sample", "series_probability", "sobol", "sobol_indices", "sweep",
     "uniform",
 ]
