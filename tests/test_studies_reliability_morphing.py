@@ -72,3 +72,21 @@ def test_form_importance_sampling_and_monte_carlo_agree():
         # both estimators are unbiased: within 3 standard errors of their difference
         assert abs(ls.p_is - p_mc) < 3 * math.hypot(ls.is_std_error, se_mc), \
             (ls.response, ls.p_is, p_mc)
+
+
+def test_tolerances_monte_carlo_gives_bootstrap_intervals():
+    """Issue 38: the std interval is the BCa bootstrap of the sample (it holds for skewed
+    responses, tests/test_studies_statistics.py), no longer the chi-square one."""
+    from scipy import stats as st
+
+    from morphlab.studies import mean_std
+
+    out, table = opt.tolerances_monte_carlo(opt.start(), 24, seed=3, executor="serial",
+                                            settings=dict(le.SETTINGS, dt=2e-3))
+    x = table.values["ks_max_stress"][table.ok]
+    assert out["ks_max_stress"]["std_ci"] == mean_std(x, 0.95, seed=3)["std_ci"]
+    lo, hi = st.chi2.ppf([0.975, 0.025], x.size - 1)
+    sd = np.std(x, ddof=1)
+    assert out["ks_max_stress"]["std_ci"] != (sd * np.sqrt((x.size - 1) / lo),
+                                              sd * np.sqrt((x.size - 1) / hi))
+    assert out["n"] == 24 and out["ks_max_stress"]["std"] == sd
