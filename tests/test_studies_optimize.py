@@ -368,3 +368,180 @@ def test_simulation_problem_exact_gradients_beat_derivative_free(cantilever_prob
     n_free = simulations_to_reach(free, f_target)
     assert n_exact is not None and n_free is not None
     assert n_exact < n_free
+
+
+# ---------------------------------------------------------------- resume, result, stop
+def _repeats(first, fn_log, variables):
+    """Designs of a resumed run's new calls that the first part had already evaluated."""
+    old = first.history.column("evaluations", "design")[
+        first.history.column("evaluations", "new").astype(bool)]
+    count = 0
+    for p, _ in fn_log:
+        v = np.array([p[k] for k in variables])
+        count += bool(np.any(np.all(np.abs(old - v) <= 1e-12 * np.maximum(1, np.abs(v)),
+                                    axis=1)))
+    return count
+
+
+@pytest.mark.parametrize("method", ["COBYLA", "COBYQA"])
+def test_resume_runs_no_design_twice(method, tmp_path):
+    """Issue 38: a resumed method that retraces its first designs (COBYLA's and COBYQA's
+    initial simplex around the restart design) found them missing from the cache by a 1e-17
+    rounding of the optimizer's vector and ran them again (6 and 2 of 162 here)."""
+    repeats, calls = 0, 0
+    for budget in range(1, 7):
+        for kw in ({}, {"scale": {"x": 0.3, "y": 0.7}}, {"normalize": True}):
+            first = optimize(rosenbrock_problem(**kw), method, max_runs=budget)
+            first.save(tmp_path / "first.npz")
+            fn = Counted(rosenbrock)
+            optimize(rosenbrock_problem(fn, **kw), method, max_runs=budget + 6,
+                     resume=tmp_path / "first.npz")
+            repeats += _repeats(first, fn.log, ["x", "y"])
+            calls += fn.calls
+    assert calls > 50 and repeats == 0
+
+
+def test_resume_from_a_file_without_optimizer_vectors(tmp_path):
+    """Files written before the optimizer's vector was recorded: the cache is keyed by the
+    design's vector, and a vector within 4 ulp of a cached one is a hit."""
+    first = optimize(rosenbrock_problem(scale={"x": 0.3, "y": 0.7}), "COBYLA", max_runs=4)
+    for rec in first.history.evaluations:
+        del rec["x"]
+    first.save(tmp_path / "old.npz")
+    fn = Counted(rosenbrock)
+    optimize(rosenbrock_problem(fn, scale={"x": 0.3, "y": 0.7}), "COBYLA", max_runs=10,
+             resume=tmp_path / "old.npz")
+    assert fn.calls == 6 and _repeats(first, fn.log, ["x", "y"]) == 0
+
+
+@pytest.mark.parametrize("method", ["SLSQP", "trust-constr"])
+@pytest.mark.parametrize("normalize", [False, True])
+def test_result_fields_as_scipy_users_expect(method, normalize):
+    pr = rosenbrock_problem(normalize=normalize)
+    res = optimize(pr, method, options=OPTIONS[method])
+    assert res.success and res.fun == res.objective
+    np.testing.assert_array_equal(res.x, [res.design["x"], res.design["y"]])
+    x, y = res.x
+    np.testing.assert_allclose(res.jac, list(rosenbrock({"x": x, "y": y})[1]["f"].values()),
+                               rtol=1e-12)
+    # d f*/d(upper of g) = -mu = -1 (module docstring), in the problem's units whatever the
+    # scaling; the optimizers' own tolerances (1e-6 on the design) bound its error
+    assert res.multipliers["g <= 0.5"] == pytest.approx(-1.0, abs=1e-4)
+    assert res.active == ["g <= 0.5"]
+    assert res.nit >= 1 and res.nfev >= 1
+
+
+def test_bound_and_equality_multipliers():
+    res = optimize(quadratic_problem(), "trust-constr", options=TRUST)
+    # f*(hi) with a = hi: d f*/d hi = 2 (a - 3) + (b + 1)/2 = -31/16 at a = 2, b = -7/8
+    assert res.multipliers["a <= 2"] == pytest.approx(-31 / 16, abs=1e-5)
+    assert res.multipliers["a >= 0"] == 0.0
+    assert "a <= 2" in res.active and "b >= -5" not in res.active
+    pr = Problem.from_function(circle, {"x": 0.5, "y": -1.5}, "f",
+                               constraints=[Constraint("h", equals=2.0)],
+                               bounds={"x": (-2.0, 2.0), "y": (-2.0, 2.0)}, normalize=True)
+    res = optimize(pr, "SLSQP", options=SLSQP)
+    # f* = -sqrt(2 c) on x² + y² = c: d f*/dc = -1/sqrt(2c) = -1/2
+    assert res.multipliers["h == 2"] == pytest.approx(-0.5, abs=1e-5)
+    assert res.active == ["h == 2"]
+
+
+def test_result_fields_survive_save_and_load(tmp_path):
+    res = optimize(rosenbrock_problem(), "SLSQP", options=SLSQP)
+    res.save(tmp_path / "r.npz")
+    back = OptimizationResult.load(tmp_path / "r.npz")
+    np.testing.assert_array_equal(back.jac, res.jac)
+    for name in ("multipliers", "active", "nit", "nfev", "njev"):
+        assert getattr(back, name) == getattr(res, name), name
+
+
+@pytest.mark.parametrize("at", [0, 2])
+def test_a_progress_that_raises_stopiteration_reads_stopped(at):
+    def stop(rec):
+        if rec["iteration"] == at:
+            raise StopIteration("enough")
+
+    res = optimize(rosenbrock_problem(), "SLSQP", progress=stop, options=SLSQP)
+    assert res.status == "stopped" and not res.success
+    assert res.message == f"stopped by progress at iteration {at}: enough"
+    assert len(res.history.iterations) == at + 1 and res.feasible is not None
+
+
+# ---------------------------------------------------------------- multi-start
+def two_wells(p):
+    x = p["x"]
+    return {"f": (x * x - 1.0) ** 2 + 0.3 * x}, {"f": {"x": 4 * x * (x * x - 1.0) + 0.3}}
+
+
+def test_multistart_finds_the_global_minimum_on_any_executor():
+    from morphlab.studies import multistart
+
+    pr = Problem.from_function(two_wells, {"x": 1.5}, "f", bounds={"x": (-2.0, 2.0)})
+    local = optimize(pr, "SLSQP", options=SLSQP)
+    serial = multistart(pr, 4, "SLSQP", executor="serial", seed=1, options=SLSQP)
+    pool = multistart(pr, 4, "SLSQP", seed=1, options=SLSQP)  # a local process pool
+    # the global minimiser of (x² - 1)² + 0.3 x: the root of 4x³ - 4x + 0.3 near -1.04
+    roots = np.roots([4.0, 0.0, -4.0, 0.3])
+    x_global = float(np.min(roots.real))
+    assert local.design["x"] > 0  # from x0 = 1.5 SLSQP stays in the right well
+    assert serial.best.design["x"] == pytest.approx(x_global, abs=SLSQP_TOL * 4)
+    assert [r.design for r in serial.results] == [r.design for r in pool.results]
+    for r, q in zip(serial.results, pool.results):  # the same evaluations, bit for bit
+        for key in ("design", "values", "x"):
+            assert [e[key] for e in r.history.evaluations] == \
+                [e[key] for e in q.history.evaluations]
+    assert serial.errors == [""] * 4 and "start" in repr(serial)
+
+
+# ---------------------------------------------------------------- robust design
+def drift(p):
+    """r = (x - 2)² + e x: at e = 0 the std under e ~ (0, σ) is σ |x|."""
+    x, e = p["x"], p["e"]
+    return {"r": (x - 2.0) ** 2 + e * x}, {"r": {"x": 2 * (x - 2.0) + e, "e": x}}
+
+
+def test_robust_objective_closed_form():
+    sigma, k = 0.4, 3.0
+    pr = Problem.from_function(drift, {"x": 0.5, "e": 0.0}, "r", variables=["x"],
+                               bounds={"x": (0.1, 3.0)},
+                               robust={"std": {"e": sigma}, "k": k})
+    res = optimize(pr, "SLSQP", options=SLSQP)
+    # J = (x - 2)² + k σ x for x > 0: minimum at x = 2 - k σ / 2 = 1.4
+    assert res.status == "converged" and pr.objective == "r.robust"
+    assert res.design["x"] == pytest.approx(2.0 - k * sigma / 2, abs=3e-6 * 2.9)
+    assert res.values["r.std"] == pytest.approx(sigma * res.design["x"], rel=1e-12)
+    plain = optimize(Problem.from_function(drift, {"x": 0.5, "e": 0.0}, "r", variables=["x"],
+                                           bounds={"x": (0.1, 3.0)}), "SLSQP", options=SLSQP)
+    assert plain.design["x"] == pytest.approx(2.0, abs=3e-6 * 2.9)
+    assert res.n_simulations == 2 * res.n_runs  # 1 + n gradient calls per design
+
+
+def test_robust_gradient_of_a_simulation_against_central_differences():
+    std = {"t": 0.02, "F": 0.05}
+    pr = Problem(tip_loaded_cantilever, {"t": 2.0, "F": 1.0},
+                 {"stress": ml.responses.ks_max_stress("beam", 2.0)}, "stress",
+                 bounds={"t": (1.5, 3.0), "F": (0.5, 2.0)}, settings=SETTINGS,
+                 robust={"std": std, "k": 2.0})
+    values, grads, n_sim = pr.evaluate(dict(pr.p0), "exact")
+    assert n_sim == 3
+    s = ml.sensitivities(tip_loaded_cantilever, pr.p0, pr.responses, **SETTINGS)
+    sd = np.sqrt(sum((s.gradients["stress"][v] * std[v]) ** 2 for v in std))
+    assert values["stress.std"] == pytest.approx(sd, rel=1e-12)  # FOSM of the same run
+    for v in ("t", "F"):
+        h = 1e-4 * pr.p0[v]
+        up = pr.evaluate({**pr.p0, v: pr.p0[v] + h}, None)[0]["stress.robust"]
+        down = pr.evaluate({**pr.p0, v: pr.p0[v] - h}, None)[0]["stress.robust"]
+        # central differences of the robust objective (error ~h² J''' ~ 1e-7 relative)
+        # against forward differences of exact gradients (step 1e-6: ~1e-6 relative of
+        # the std's share)
+        assert grads["stress.robust"][v] == pytest.approx((up - down) / (2 * h), rel=2e-5)
+
+
+def test_robust_bad_input():
+    with pytest.raises(ml.ModelError, match="not variables of p0"):
+        Problem.from_function(drift, {"x": 0.5}, "r", bounds={"x": (0.1, 3.0)},
+                              robust={"std": {"e": 0.1}})
+    pr = Problem.from_function(drift, {"x": 0.5, "e": 0.0}, "r", variables=["x"],
+                               bounds={"x": (0.1, 3.0)}, robust={"std": {"e": 0.1}})
+    with pytest.raises(ml.ModelError, match="gradient='exact'"):
+        optimize(pr, "SLSQP", gradient="finite-difference")

@@ -16,15 +16,20 @@ snap-through).
 
 Tolerances of manufacture for the uncertainty study (standard deviations,
 :data:`TOLERANCES`): pivot and link points 0.1 mm, thickness 0.05 mm, Young's modulus 3 %,
-torque 5 %.
+torque 5 %. As a reliability problem (:func:`reliability`), normal scatter of these 14
+variables about a design and two failure events: the KS skin stress above
+:data:`ALLOWABLE_MPA` and the largest node error above :data:`MAX_ERROR_MM`.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ModelError
 from ..model import Model
+from ..solve.settings import Settings
 from ..studies.problem import Constraint, Problem
 from . import leading_edge as le
 
@@ -39,6 +44,8 @@ VARIABLES = THICKNESS + MECHANISM
 ALLOWABLE_MPA = le.YIELD_MPA / 1.5
 #: Least distance of the joints A, B, D from the skin contour [mm].
 CLEARANCE_MM = 1.0
+#: Largest node error accepted at the morphed state in the reliability problem [mm].
+MAX_ERROR_MM = 1.0
 #: Standard deviations of manufacture (variable units; ``E`` is the skin's modulus).
 TOLERANCES = {**{t: 0.05 for t in THICKNESS}, "x_A": 0.1, "y_A": 0.1, "x_B": 0.1, "y_B": 0.1,
               "x_D": 0.1, "y_D": 0.1, "E": 0.03 * le.E_AL, "M_t": 0.05 * le.DEFAULTS["M_t"]}
@@ -151,7 +158,14 @@ RESPONSES = {"rms_error": le.rms_error, "ks_max_stress": le.ks_max_stress,
              "max_error": le.max_error, "joint_clearance": joint_clearance}
 
 
-def problem(*, n_elements: int = le.N_ELEMENTS, settings: dict | None = None,
+def _settings(settings) -> Settings:
+    """The runs' options as Settings: the study's by default, a dict or a Settings."""
+    if isinstance(settings, Settings):
+        return settings
+    return Settings.of(**dict(le.SETTINGS if settings is None else settings))
+
+
+def problem(*, n_elements: int = le.N_ELEMENTS, settings: dict | Settings | None = None,
             p0: dict | None = None, variables=VARIABLES, method: str = "direct") -> Problem:
     """The design problem (module docstring): minimise ``rms_error`` over ``variables``
     subject to ``ks_max_stress <= ALLOWABLE_MPA`` and ``joint_clearance >= CLEARANCE_MM``,
@@ -162,11 +176,12 @@ def problem(*, n_elements: int = le.N_ELEMENTS, settings: dict | None = None,
                    constraints=[Constraint("ks_max_stress", upper=ALLOWABLE_MPA),
                                 Constraint("joint_clearance", lower=CLEARANCE_MM)],
                    bounds={k: b[k] for k in variables}, variables=list(variables),
-                   settings=dict(le.SETTINGS if settings is None else settings),
+                   settings=_settings(settings),
                    method=method, normalize=True)
 
 
-def verify(p: dict, *, n_elements: int = le.N_ELEMENTS, settings: dict | None = None) -> dict:
+def verify(p: dict, *, n_elements: int = le.N_ELEMENTS,
+           settings: dict | Settings | None = None) -> dict:
     """Re-simulate design ``p`` on its own (no optimizer cache) and check what the gradient
     constraints do not see: responses, joint clearance, links crossing the skin, and the
     crank rotation being monotone while the torque ramps up (no snap-through).
@@ -176,8 +191,7 @@ def verify(p: dict, *, n_elements: int = le.N_ELEMENTS, settings: dict | None = 
     """
     from ..solve.timeloop import simulate
 
-    res = simulate(build(p, n_elements=n_elements), **dict(le.SETTINGS if settings is None
-                                                           else settings))
+    res = simulate(build(p, n_elements=n_elements), settings=_settings(settings))
     values = {k: float(np.real(f(res))) for k, f in RESPONSES.items()}
     links = le.mechanism_clearance(res, {k: v for k, v in p.items()
                                          if k in le.GEOMETRY or k in ("x_A", "y_A")})
@@ -229,7 +243,8 @@ def compare_optimizers(pb: Problem, *, maxiter: int = 60, free_runs: int = 400,
             for k, r in out.items()}
 
 
-def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS, settings: dict | None = None):
+def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS,
+                    settings: dict | Settings | None = None):
     """First-order second-moment propagation of :data:`TOLERANCES` at design ``p``: one
     direct sensitivity run over the 14 scattered variables (:func:`morphlab.studies.fosm`),
     with the probability of the KS stress exceeding :data:`ALLOWABLE_MPA` and of the joint
@@ -240,45 +255,127 @@ def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS, settings: dict 
 
     names = list(TOLERANCES)
     sens = sensitivities(lambda q: build(q, n_elements=n_elements), p, RESPONSES,
-                         variables=names, method="direct",
-                         **dict(le.SETTINGS if settings is None else settings))
+                         variables=names, method="direct", settings=_settings(settings))
     unc = fosm(sens, std=TOLERANCES, allowables={"ks_max_stress": (None, ALLOWABLE_MPA),
                                                  "joint_clearance": (CLEARANCE_MM, None)})
     return unc, sens
 
 
 def tolerances_monte_carlo(p: dict, n: int, *, seed: int = 0, executor=None,
-                           n_elements: int = le.N_ELEMENTS, settings: dict | None = None):
+                           n_elements: int = le.N_ELEMENTS,
+                           settings: dict | Settings | None = None):
     """Monte Carlo check of :func:`tolerances_fosm`: ``n`` designs drawn from independent
     normal distributions of :data:`TOLERANCES` about ``p``, run through
     :func:`morphlab.studies.sweep` (a local process pool by default; any executor, e.g. a
     Dask client's). Returns ``(stats, table)``: per response the sample ``mean`` and ``std``
-    with 95 % confidence intervals (``mean_ci``: normal; ``std_ci``: chi-square), the
+    with 95 % BCa bootstrap intervals (``mean_ci``, ``std_ci``: they hold for skewed
+    responses, unlike a chi-square interval; :mod:`morphlab.studies.statistics`), the
     fraction beyond the allowables, and the :class:`~morphlab.studies.SweepResult`."""
-    from scipy import stats as st
-
     from ..studies import SimulationTask, monte_carlo, normal, sweep
+    from ..studies.statistics import mean_std
 
     designs = monte_carlo({k: normal(p[k], s) for k, s in TOLERANCES.items()}, n, seed=seed)
     for k, v in p.items():
         if k not in designs:
             designs[k] = np.full(n, float(v))
-    task = SimulationTask(_Zoned(n_elements), RESPONSES,
-                          dict(le.SETTINGS if settings is None else settings))
+    task = SimulationTask(_Zoned(n_elements), RESPONSES, _settings(settings))
     table = sweep(task, designs, executor=executor)
     out = {"n": int(np.sum(table.ok)), "failed": int(np.sum(~table.ok))}
     for k in RESPONSES:
-        x = table.values[k][table.ok]
-        m, sd, k_n = float(np.mean(x)), float(np.std(x, ddof=1)), x.size
-        half = 1.96 * sd / np.sqrt(k_n)
-        lo, hi = st.chi2.ppf([0.975, 0.025], k_n - 1)
-        out[k] = {"mean": m, "std": sd, "mean_ci": (m - half, m + half),
-                  "std_ci": (sd * np.sqrt((k_n - 1) / lo), sd * np.sqrt((k_n - 1) / hi))}
+        out[k] = mean_std(table.values[k][table.ok], 0.95, seed=seed)
     out["ks_max_stress"]["beyond_allowable"] = float(np.mean(
         table.values["ks_max_stress"][table.ok] > ALLOWABLE_MPA))
     out["joint_clearance"]["beyond_allowable"] = float(np.mean(
         table.values["joint_clearance"][table.ok] < CLEARANCE_MM))
     return out, table
+
+
+def tolerance_distribution(p: dict):
+    """The manufacturing scatter about design ``p``: independent normal variables of
+    :data:`TOLERANCES` (a :class:`~morphlab.studies.JointDistribution`)."""
+    from scipy import stats
+
+    from ..studies import JointDistribution
+
+    missing = [k for k in TOLERANCES if k not in p]
+    if missing:
+        raise ModelError(f"design lacks the scattered variables {missing}")
+    return JointDistribution({k: stats.norm(float(p[k]), s) for k, s in TOLERANCES.items()})
+
+
+#: Responses of the reliability problem.
+RELIABILITY_RESPONSES = {"ks_max_stress": le.ks_max_stress, "max_error": le.max_error}
+
+
+class ReliabilityProblem(NamedTuple):
+    """What :func:`morphlab.studies.propagate` (or ``form``, ``importance_sampling``) takes
+    for the reliability problem: ``propagate(rp.task, rp.distributions, method,
+    allowables=rp.allowables, fixed=rp.fixed, ...)``."""
+
+    task: object
+    distributions: object
+    fixed: dict
+    allowables: dict
+
+
+def reliability_problem(p: dict, *, stress_allowable: float = ALLOWABLE_MPA,
+                        error_limit: float = MAX_ERROR_MM, n_elements: int = le.N_ELEMENTS,
+                        settings: dict | Settings | None = None) -> ReliabilityProblem:
+    """The manufacturing tolerances about design ``p`` as a reliability problem: the task
+    (KS stress [MPa] and largest node error [mm], with direct gradients by the 14 variables
+    of :data:`TOLERANCES`), their distribution (:func:`tolerance_distribution`), the other
+    variables held at ``p`` and the failure events ``KS stress > stress_allowable`` and
+    ``max_error > error_limit``."""
+    from ..studies import SimulationTask
+
+    task = SimulationTask(_Zoned(n_elements), RELIABILITY_RESPONSES, _settings(settings),
+                          gradients=list(TOLERANCES))
+    return ReliabilityProblem(task, tolerance_distribution(p),
+                              {k: float(v) for k, v in p.items() if k not in TOLERANCES},
+                              {"ks_max_stress": (None, float(stress_allowable)),
+                               "max_error": (None, float(error_limit))})
+
+
+def reliability(p: dict, method: str = "form", *, stress_allowable: float = ALLOWABLE_MPA,
+                error_limit: float = MAX_ERROR_MM, n: int | None = None, seed: int = 0,
+                executor=None, n_elements: int = le.N_ELEMENTS,
+                settings: dict | Settings | None = None, mirror: bool = True):
+    """``P(KS stress > stress_allowable)`` and ``P(max node error > error_limit)`` under the
+    manufacturing tolerances about design ``p`` (:func:`reliability_problem`), by
+    :func:`morphlab.studies.propagate`.
+
+    Parameters
+    ----------
+    p : dict
+        The design (:func:`start` or an optimum), with ``E``.
+    method : {"form", "importance-sampling", "monte-carlo", "fosm"}
+        FORM with exact (direct) gradients over the 14 variables; importance sampling
+        around its design points (``n`` draws per failure event); plain Monte Carlo (``n``
+        samples, ``sampling="mc"``, so the exceedance intervals are exact binomial ones);
+        FOSM's normal approximation.
+    stress_allowable : float
+        [MPa].
+    error_limit : float
+        [mm].
+    n, seed, executor :
+        As for :func:`~morphlab.studies.propagate`.
+    n_elements, settings :
+        The model's skin mesh and the runs' options (default the study's).
+    mirror : bool
+        Search a second design point of each event from the mirror image of the first (the
+        node error grows whichever way the mechanism misses: two failure modes).
+
+    Returns
+    -------
+    ReliabilityResult, SampleResult or UncertaintyResult
+    """
+    from ..studies import SearchOptions, propagate
+
+    rp = reliability_problem(p, stress_allowable=stress_allowable, error_limit=error_limit,
+                             n_elements=n_elements, settings=settings)
+    return propagate(rp.task, rp.distributions, method, allowables=rp.allowables,
+                     fixed=rp.fixed, n=n, sampling="mc", seed=seed, executor=executor,
+                     form_options=SearchOptions(mirror=mirror))
 
 
 class _Zoned:

@@ -25,8 +25,9 @@ class History:
     variables, responses : list[str]
         Design variables and recorded responses, in the column order of :meth:`column`.
     evaluations : list[dict]
-        One record per request of the optimizer: ``design`` (variables only), ``values``,
-        ``gradients`` (``[response][variable]`` or None), ``objective`` (the raw response),
+        One record per request of the optimizer: ``design`` (variables only), ``x`` (the
+        optimizer's vector, its exact bits, for a resume), ``values``, ``gradients``
+        (``[response][variable]`` or None), ``objective`` (the raw response),
         ``max_violation``, ``time`` [s since the start], ``duration`` [s of the run],
         ``new`` (a new run, or False for a cache hit) and ``simulations``.
     iterations : list[dict]
@@ -41,13 +42,16 @@ class History:
     iterations: list = field(default_factory=list)
 
     def column(self, table: str, key: str) -> np.ndarray:
-        """One field of ``"evaluations"`` or ``"iterations"`` as an array; ``"design"`` gives
-        (n, n_variables), ``"values"`` (n, n_responses), ``"gradients"`` (n, n_responses,
-        n_variables, NaN where none)."""
+        """One field of ``"evaluations"`` or ``"iterations"`` as an array; ``"design"`` and
+        ``"x"`` give (n, n_variables), ``"values"`` (n, n_responses), ``"gradients"`` (n,
+        n_responses, n_variables, NaN where none)."""
         recs = getattr(self, table)
         n, nv, nr = len(recs), len(self.variables), len(self.responses)
         if key == "design":
             return np.array([[r["design"][v] for v in self.variables] for r in recs],
+                            dtype=float).reshape(n, nv)
+        if key == "x":
+            return np.array([r.get("x", [np.nan] * nv) for r in recs],
                             dtype=float).reshape(n, nv)
         if key == "values":
             return np.array([[r["values"][k] for k in self.responses] for r in recs],
@@ -61,7 +65,7 @@ class History:
     def to_arrays(self) -> dict:
         out = {}
         for table, keys in (("evaluations", _EVAL_KEYS), ("iterations", _ITER_KEYS)):
-            for key in keys + (("design", "values", "gradients") if table == "evaluations"
+            for key in keys + (("design", "x", "values", "gradients") if table == "evaluations"
                                else ("design",)):
                 out[f"{table}/{key}"] = self.column(table, key)
         return out
@@ -77,6 +81,8 @@ class History:
 
         evals = records("evaluations", _EVAL_KEYS)
         for i, r in enumerate(evals):
+            if "evaluations/x" in arrays:  # written since the optimizer vector is recorded
+                r["x"] = arrays["evaluations/x"][i].tolist()
             r["values"] = dict(zip(responses, arrays["evaluations/values"][i].tolist()))
             g = arrays["evaluations/gradients"][i]
             r["gradients"] = None if np.isnan(g).all() else {
@@ -102,7 +108,8 @@ class OptimizationResult:
     max_violation : float
         Largest constraint violation (in the units of :mod:`~morphlab.studies.optimize`).
     status : str
-        ``"converged"``, ``"failed"``, ``"budget"`` or ``"error"``; ``message`` says why.
+        ``"converged"``, ``"failed"`` (scipy stopped otherwise), ``"budget"``, ``"stopped"``
+        (``progress`` raised StopIteration) or ``"error"``; ``message`` says why.
     n_runs, n_simulations : int
         Runs (new designs) and primal simulations, a resumed history included.
     wall_time : float
@@ -116,6 +123,24 @@ class OptimizationResult:
         final ``nit`` and, for trust-constr, ``barrier_parameter``, ``optimality`` and
         ``constr_violation`` (an active inequality ends with a slack of about
         ``barrier_parameter / multiplier`` in optimizer variables).
+    jac : ndarray, shape (n_variables,), or None
+        Gradient of the objective at the design by the variables (objective units per
+        variable unit), where a gradient was computed there.
+    multipliers : dict[str, float]
+        Lagrange multipliers of the constraint rows (named like ``"stress <= 25"``) at
+        scipy's final design, where the method gives them (SLSQP, trust-constr), in the units
+        of the problem: the derivative of the optimal objective by the row's limit (negative
+        for an active upper limit, positive for an active lower limit, 0 for an inactive
+        row). trust-constr also gives the bounds' (``"t <= 3"``, ``"t >= 1.5"``).
+    active : list[str]
+        Active constraint rows and bounds at the design (within ``1e-6`` in the scaled units
+        of :mod:`~morphlab.studies.optimize`; equality rows always).
+    nit, nfev, njev : int or None
+        Scipy's iterations and function and gradient evaluations (of the last call, a
+        resumed part only), None where the method does not report them.
+
+    ``x``, ``fun`` and ``success`` are scipy's names for the design as an array (in the order
+    of ``history.variables``, variable units), the objective and ``status == "converged"``.
     """
 
     design: dict
@@ -132,6 +157,27 @@ class OptimizationResult:
     gradient: str | None
     history: History
     info: dict
+    jac: np.ndarray | None = None
+    multipliers: dict = field(default_factory=dict)
+    active: list = field(default_factory=list)
+    nit: int | None = None
+    nfev: int | None = None
+    njev: int | None = None
+
+    @property
+    def x(self) -> np.ndarray:
+        """The design as an array in the order of ``history.variables`` (variable units)."""
+        return np.array([self.design[v] for v in self.history.variables], dtype=float)
+
+    @property
+    def fun(self) -> float:
+        """The objective (scipy's name)."""
+        return self.objective
+
+    @property
+    def success(self) -> bool:
+        """``status == "converged"`` (scipy's name)."""
+        return self.status == "converged"
 
     def __repr__(self) -> str:
         design = ", ".join(f"{k}={v:.6g}" for k, v in self.design.items())
@@ -143,6 +189,7 @@ class OptimizationResult:
     def save(self, path) -> None:
         """Write to ``path`` (``.npz``) with :func:`morphlab.io.save_arrays`."""
         meta = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "history"}
+        meta["jac"] = None if self.jac is None else [float(g) for g in self.jac]
         meta.update(kind="OptimizationResult", variables=self.history.variables,
                     responses=self.history.responses)
         save_arrays(path, self.history.to_arrays(), meta)
@@ -154,4 +201,6 @@ class OptimizationResult:
         if meta.pop("kind", None) != "OptimizationResult":
             raise FormatError(f"{os.fspath(path)!r} holds no OptimizationResult")
         hist = History.from_arrays(meta.pop("variables"), meta.pop("responses"), arrays)
+        if meta.get("jac") is not None:
+            meta["jac"] = np.array(meta["jac"], dtype=float)
         return cls(history=hist, **meta)

@@ -10,6 +10,7 @@ bounds' [0, 1] map by default, ``p / scale`` with a user scale (see
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ from ..sensitivity.api import sensitivities
 from ..sensitivity.strategies import resolve
 from ..solve.settings import Settings
 from ..solve.timeloop import simulate
+from .robust import Robust
 
 GRADIENTS = ("exact", "finite-difference")
 
@@ -109,11 +111,23 @@ class Problem:
     normalize : bool
         Divide the objective and the constraints by their magnitudes at ``p0`` (see
         :mod:`morphlab.studies.optimize`).
+    robust : dict, optional
+        Minimise ``mean + k std`` of the objective under scattered variables instead of its
+        value (:mod:`morphlab.studies.robust`): ``{"std": {variable: sigma}, "k": 3.0}``.
+        Gradient methods need ``gradient="exact"``; each design costs ``1 + n`` gradient runs.
 
     Attributes
     ----------
-    p0, variables, responses, objective, constraints, settings, method, normalize :
+    p0, variables, responses, constraints, method, normalize :
         As given (``responses`` of a function problem: a dict of the recorded names).
+    settings : Settings or None
+        The options of the runs (None for a function problem).
+    objective : str
+        The minimised entry: the objective as given, or ``"<objective>.robust"``.
+    recorded : list[str]
+        Names recorded in the history: the responses, and the robust entries
+        ``"<objective>.std"``, ``"<objective>.robust"``.
+    robust : Robust or None
     bounds : list of (float, float)
         ``(low, high)`` of each variable, infinite for an open side.
     offset, factor : ndarray, shape (n_variables,)
@@ -126,8 +140,9 @@ class Problem:
     def __init__(self, build: Callable[[dict], object], p0: Mapping[str, float],
                  responses: Mapping[str, Callable], objective: str, *,
                  constraints=(), bounds: Mapping, variables: list | None = None,
-                 settings: Mapping | None = None, method: str = "direct",
-                 scale: Mapping | None = None, normalize: bool = False):
+                 settings: Mapping | Settings | None = None, method: str = "direct",
+                 scale: Mapping | None = None, normalize: bool = False,
+                 robust: Mapping | None = None):
         if not callable(build):
             raise ModelError("build must be a function p -> Model")
         if not isinstance(responses, Mapping) or not responses or not all(
@@ -137,50 +152,44 @@ class Problem:
             resolve(method)
         except SensitivityError as exc:
             raise ModelError(str(exc)) from None
-        settings = dict(settings or {})
-        bad = sorted(set(settings) - _settings_keywords())
-        if bad:
-            raise ModelError(f"settings {bad} are not options of a run; valid: "
-                             f"{sorted(_settings_keywords())}")
-        if "t_end" not in settings or "dt" not in settings:
-            raise ModelError("settings need the end time 't_end' and step 'dt' of the runs")
-        Settings.of(**settings)  # every value valid
-        if settings.get("newton", "full") != "full":
-            raise ModelError("settings newton must be 'full': the gradients need the exact "
-                             "Newton matrix of every step")
-        self.build, self._fn, self.settings, self.method = build, None, settings, method
+        self.settings = _run_settings(settings)
+        self.build, self._fn, self.method, self.step = build, None, method, 1e-6
         self.responses = dict(responses)
         self._setup(p0, list(self.responses), objective, constraints, bounds, variables,
-                    scale, normalize)
+                    scale, normalize, robust)
 
     @classmethod
     def from_function(cls, fn: Callable[[dict], tuple], p0: Mapping[str, float],
                       objective: str, *, constraints=(), bounds: Mapping,
                       variables: list | None = None, responses: list | None = None,
                       scale: Mapping | None = None, normalize: bool = False,
-                      step: float = 1e-6) -> Problem:
+                      step: float = 1e-6, robust: Mapping | None = None) -> Problem:
         """A problem on ``fn(p) -> (values, gradients)`` instead of a simulation.
 
         ``values[response]`` is a float and ``gradients[response][variable]`` its derivative
         (or ``gradients`` None: then only derivative-free methods or
         ``gradient="finite-difference"``, by forward differences of relative step ``step``).
         ``responses`` lists the recorded names (default: the objective and the constraints');
-        the other parameters are those of :class:`Problem`.
+        the other parameters are those of :class:`Problem` (``robust``: ``fn`` gives the
+        gradients by the scattered variables too, and ``step`` is that of the differences of
+        the gradients).
         """
         if not callable(fn):
             raise ModelError("fn must be a function p -> (values, gradients)")
         if not (isinstance(step, float) and 0.0 < step < 1.0):
             raise ModelError(f"step must be a float in (0, 1), got {step!r}")
         self = cls.__new__(cls)
-        self.build, self._fn, self.settings, self.method, self.step = None, fn, {}, None, step
+        self.build, self._fn, self.settings, self.method, self.step = None, fn, None, None, step
         needed = [objective] + [c.response for c in constraints
                                 if isinstance(c, Constraint)]
         names = list(dict.fromkeys(list(responses or []) + needed))
         self.responses = dict.fromkeys(names)
-        self._setup(p0, names, objective, constraints, bounds, variables, scale, normalize)
+        self._setup(p0, names, objective, constraints, bounds, variables, scale, normalize,
+                    robust)
         return self
 
-    def _setup(self, p0, names, objective, constraints, bounds, variables, scale, normalize):
+    def _setup(self, p0, names, objective, constraints, bounds, variables, scale, normalize,
+               robust=None):
         if not isinstance(p0, Mapping) or not p0:
             raise ModelError("p0 must be a non-empty dict of design variables")
         self.p0 = {k: float(np.real(v)) for k, v in p0.items()}
@@ -193,6 +202,11 @@ class Problem:
                              f"(known: {list(self.p0)})")
         if objective not in names:
             raise ModelError(f"objective {objective!r} is not a response (known: {names})")
+        self.robust = None if robust is None else Robust(robust, objective, list(self.p0))
+        self.recorded = list(names) + (list(self.robust.names) if self.robust else [])
+        names = self.recorded
+        if self.robust:
+            objective = self.robust.names[1]
         constraints = tuple(constraints)
         for c in constraints:
             if not isinstance(c, Constraint) or c.response not in names:
@@ -204,6 +218,22 @@ class Problem:
         self.rows = [(c.response,) + r for c in constraints for r in c.rows()]
         self.bounds, self.offset, self.factor = _scaling(self.p0, self.variables, bounds,
                                                            scale)
+
+    def with_start(self, start: Mapping) -> Problem:
+        """A copy of the problem starting from ``start`` (values of some or all variables;
+        the rest of ``p0`` kept), checked within the bounds."""
+        p0 = dict(self.p0)
+        for k, v in start.items():
+            if k not in self.variables:
+                raise ModelError(f"start value of {k!r}, which is not a design variable "
+                                 f"{self.variables}")
+            p0[k] = float(v)
+        for v, (lo, hi) in zip(self.variables, self.bounds):
+            if not lo <= p0[v] <= hi:
+                raise ModelError(f"start {v} = {p0[v]} lies outside its bounds ({lo}, {hi})")
+        out = copy.copy(self)
+        out.p0 = p0
+        return out
 
     def to_x(self, design: Mapping) -> np.ndarray:
         """Optimizer vector of a design (dict of at least the variables)."""
@@ -220,6 +250,12 @@ class Problem:
         """``(values, gradients or None, simulations)`` of a design; ``gradient`` None (primal
         only), ``"exact"`` or ``"finite-difference"``."""
         n = len(self.variables)
+        if self.robust is not None:
+            if gradient == "finite-difference":
+                raise ModelError("a robust objective takes gradient='exact' (its std needs "
+                                 "the gradients) or a derivative-free method")
+            return self.robust.evaluate(self._gradient_run, p, self.variables,
+                                        gradient is not None, self.step)
         if self._fn is not None:
             values, grads = self._call(p)
             if gradient == "finite-difference":
@@ -229,14 +265,28 @@ class Problem:
                                        "'finite-difference' or a derivative-free method")
             return values, grads, (n + 1 if gradient == "finite-difference" else 1)
         if gradient is None:
-            res = simulate(self.build(p), **self.settings)
+            res = simulate(self.build(p), settings=self.settings)
             return {k: float(np.real(f(res))) for k, f in self.responses.items()}, None, 1
         method = self.method if gradient == "exact" else "forward-difference"
         s = sensitivities(self.build, p, self.responses, method=method,
-                          variables=self.variables, **self.settings)
+                          variables=self.variables, settings=self.settings)
         return dict(s.values), s.gradients, _SIMULATIONS.get(s.method, lambda n: 1)(n)
 
-    def _call(self, p):
+    def _gradient_run(self, p: dict, variables: list) -> tuple[dict, dict, int]:
+        """Values and exact gradients by ``variables`` (a sensitivity run, or ``fn``)."""
+        if self._fn is not None:
+            values, grads = self._call(p, variables)
+            if grads is None:
+                raise SensitivityError("fn returned no gradients; a robust objective needs "
+                                       "them")
+            return values, grads, 1
+        s = sensitivities(self.build, p, self.responses, method=self.method,
+                          variables=variables, settings=self.settings)
+        return dict(s.values), s.gradients, _SIMULATIONS.get(s.method, lambda n: 1)(
+            len(variables))
+
+    def _call(self, p, variables=None):
+        variables = self.variables if variables is None else variables
         out = self._fn(dict(p))
         if not (isinstance(out, tuple) and len(out) == 2 and isinstance(out[0], Mapping)):
             raise SensitivityError("fn must return (values dict, gradients dict or None)")
@@ -247,11 +297,11 @@ class Problem:
         values = {k: float(values[k]) for k in self.responses}
         if grads is not None:
             try:
-                grads = {k: {v: float(grads[k][v]) for v in self.variables}
+                grads = {k: {v: float(grads[k][v]) for v in variables}
                          for k in self.responses}
             except (KeyError, TypeError) as exc:
                 raise SensitivityError(f"fn's gradients must be gradients[response][variable] "
-                                       f"for {list(self.responses)} x {self.variables}: "
+                                       f"for {list(self.responses)} x {variables}: "
                                        f"missing {exc}") from exc
         return values, grads
 
@@ -263,6 +313,25 @@ class Problem:
             for k in self.responses:
                 grads[k][v] = (vp[k] - values[k]) / h
         return grads
+
+
+def _run_settings(settings) -> Settings:
+    """The runs' options as Settings, from a Settings or a dict of its fields (checked)."""
+    if isinstance(settings, Settings):
+        out = settings
+    else:
+        settings = dict(settings or {})
+        bad = sorted(set(settings) - _settings_keywords())
+        if bad:
+            raise ModelError(f"settings {bad} are not options of a run; valid: "
+                             f"{sorted(_settings_keywords())}")
+        if "t_end" not in settings or "dt" not in settings:
+            raise ModelError("settings need the end time 't_end' and step 'dt' of the runs")
+        out = Settings.of(**settings)  # every value valid
+    if out.newton != "full":
+        raise ModelError("settings newton must be 'full': the gradients need the exact "
+                         "Newton matrix of every step")
+    return out
 
 
 def _scaling(p0, variables, bounds, scale):
