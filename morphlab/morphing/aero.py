@@ -12,9 +12,15 @@ Two tools, each for what it does well:
   Its boundary-layer outputs (edge speed ``ue/V`` at 32 stations per side, the first at
   x/c = 1/64) give a viscous Cp, but too coarse for the suction peak round the nose.
 * a **linear-vorticity panel method** (:mod:`~morphlab.morphing.panel`) gives the pressure
-  along the whole contour, the nose resolved. It is inviscid; it is run at the angle of attack
-  at which its lift equals NeuralFoil's viscous lift (the usual way to carry the boundary
-  layer's main effect, the loss of lift, into an inviscid pressure distribution).
+  along the whole contour, the nose resolved. It is inviscid. By default (``cp_match="skin"``)
+  it runs at the angle of attack at which its Cp best fits (least squares) NeuralFoil's
+  viscous Cp at the stations on the skin (x/c <= 0.26, 8 per side): the flow round the nose
+  is then the viscous one where NeuralFoil sees it, and the panel method supplies the suction
+  peak between and ahead of its stations. ``cp_match="lift"`` runs it at the angle where
+  its lift equals NeuralFoil's viscous lift instead; at high lift, where the boundary layer
+  costs much of the lift aft, that under-predicts the suction at the nose (thermalling,
+  undeformed: Cp -2.8 against NeuralFoil's -3.9 at x/c = 1/64), which is why it is not the
+  default.
 
 The pressure on the skin is the gauge pressure ``p = q Cp`` [MPa]: positive pushes on the
 surface (acts against the outward normal), negative (suction) pulls it outward.
@@ -81,7 +87,10 @@ class AeroResult:
         Inviscid Cp at the nodes, at :attr:`alpha_inviscid` (NaN at the two trailing-edge
         nodes, see :meth:`~morphlab.morphing.panel.PanelSolution.cp`).
     alpha_inviscid : float
-        Angle of attack [deg] at which the panel method's lift equals :attr:`cl`.
+        Angle of attack [deg] of the panel solution (see ``cp_match`` of :func:`analyze`).
+    cp_match_rms : float
+        RMS difference of the panel Cp from NeuralFoil's viscous Cp at the stations used for
+        the match (x/c <= ``match_xc``, both surfaces).
     bl_x : ndarray, shape (32,)
         NeuralFoil's boundary-layer stations, x/c in the chord frame, on each surface.
     cp_upper, cp_lower : ndarray, shape (32,)
@@ -101,6 +110,7 @@ class AeroResult:
     nodes: FloatArray
     cp: FloatArray
     alpha_inviscid: float
+    cp_match_rms: float
     bl_x: FloatArray
     cp_upper: FloatArray
     cp_lower: FloatArray
@@ -199,8 +209,29 @@ def _alpha_for_cl(fit, condition: FlightCondition, model_size: str) -> float:
     raise ModelError(f"no angle of attack found for cl {condition.cl} (residual {res:.2e})")
 
 
+def _match_skin(panels, contour: Contour, s_nodes, bl_x, cp_upper, cp_lower, match_xc,
+                alpha0: float) -> float:
+    """Angle of attack [deg] whose panel Cp best fits NeuralFoil's Cp at the stations with
+    x/c <= match_xc (Gauss-Newton on the least-squares residual, from ``alpha0``)."""
+    sel = bl_x <= match_xc
+    s_st = np.concatenate([contour.at_x(bl_x[sel], True), contour.at_x(bl_x[sel], False)])
+    target = np.concatenate([cp_upper[sel], cp_lower[sel]])
+    s_in = s_nodes[1:-1]
+    a = np.radians(alpha0)
+    for _ in range(100):
+        g = np.cos(a) * panels.gamma0 + np.sin(a) * panels.gamma90
+        dg = -np.sin(a) * panels.gamma0 + np.cos(a) * panels.gamma90
+        r = np.interp(s_st, s_in, (1.0 - g * g)[1:-1]) - target
+        jac = np.interp(s_st, s_in, (-2.0 * g * dg)[1:-1])
+        step = np.dot(jac, r) / np.dot(jac, jac)
+        a -= step
+        if abs(step) < 1e-14:
+            break
+    return float(np.degrees(a))
+
+
 def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: str = "xlarge",
-            n_panels: int = 240) -> AeroResult:
+            n_panels: int = 240, cp_match: str = "skin", match_xc: float = 0.26) -> AeroResult:
     """Flow about a wing section at a flight condition.
 
     Parameters
@@ -214,6 +245,12 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
         NeuralFoil network (:data:`MODEL_SIZES`); default "xlarge".
     n_panels : int, optional
         Panels of the inviscid pressure distribution (even, >= 16); default 240.
+    cp_match : {"skin", "lift"}, optional
+        Angle of attack of the inviscid pressure distribution: the best fit to NeuralFoil's
+        viscous Cp at its stations with x/c <= ``match_xc`` ("skin", default), or equal lift
+        ("lift"); see the module's notes.
+    match_xc : float, optional
+        Extent of the fit in x/c; default 0.26, the skin's (the spar at 0.25 c).
 
     Returns
     -------
@@ -226,6 +263,10 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
     """
     if model_size not in MODEL_SIZES:
         raise ModelError(f"model_size must be one of {MODEL_SIZES}, got {model_size!r}")
+    if cp_match not in ("skin", "lift"):
+        raise ModelError(f"cp_match must be 'skin' or 'lift', got {cp_match!r}")
+    if not 0.05 <= match_xc <= 1.0:
+        raise ModelError(f"match_xc must lie in [0.05, 1], got {match_xc!r}")
     if not isinstance(condition, FlightCondition):
         raise ModelError(f"condition must be a FlightCondition, got {type(condition).__name__}")
     contour = Contour(coordinates)
@@ -236,18 +277,26 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
     nodes = contour.resample(n_panels)
     panels = panel_solution(nodes, chord=condition.chord)
     cl = float(out["cl"][0])
-    alpha_inv = panels.alpha_for_cl(cl)
     nf = _neuralfoil()
-    n_bl = len(nf.bl_x_points)
-    ue_u = np.array([out[f"upper_bl_ue/vinf_{i}"][0] for i in range(n_bl)])
-    ue_l = np.array([out[f"lower_bl_ue/vinf_{i}"][0] for i in range(n_bl)])
+    bl_x = np.asarray(nf.bl_x_points, dtype=float)
+    cp_u = 1.0 - np.array([out[f"upper_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
+    cp_l = 1.0 - np.array([out[f"lower_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
+    s_nodes = contour.locate(nodes)
+    alpha_inv = panels.alpha_for_cl(cl)
+    if cp_match == "skin":
+        alpha_inv = _match_skin(panels, contour, s_nodes, bl_x, cp_u, cp_l, match_xc, alpha_inv)
+    cp = panels.cp(alpha_inv)
+    sel = bl_x <= match_xc
+    s_st = np.concatenate([contour.at_x(bl_x[sel], True), contour.at_x(bl_x[sel], False)])
+    miss = (np.interp(s_st, s_nodes[1:-1], cp[1:-1])
+            - np.concatenate([cp_u[sel], cp_l[sel]]))
     return AeroResult(
         condition=condition, alpha=alpha, cl=cl, cd=float(out["cd"][0]), cm=float(out["cm"][0]),
         xtr_upper=float(out["Top_Xtr"][0]), xtr_lower=float(out["Bot_Xtr"][0]),
         confidence=float(out["analysis_confidence"][0]), contour=contour, fit_rms=fit.rms,
-        nodes=nodes, cp=panels.cp(alpha_inv), alpha_inviscid=alpha_inv,
-        bl_x=np.asarray(nf.bl_x_points, dtype=float), cp_upper=1.0 - ue_u**2,
-        cp_lower=1.0 - ue_l**2)
+        nodes=nodes, cp=cp, alpha_inviscid=alpha_inv,
+        cp_match_rms=float(np.sqrt(np.mean(miss * miss))), bl_x=bl_x, cp_upper=cp_u,
+        cp_lower=cp_l)
 
 
 def skin_pressure(result: AeroResult, points: ArrayLike) -> FloatArray:
@@ -263,10 +312,10 @@ def skin_pressure(result: AeroResult, points: ArrayLike) -> FloatArray:
     Returns
     -------
     ndarray, shape (m,)
-        Gauge pressure ``p = q Cp`` [MPa = N/mm²] (q of the flight condition, Cp inviscid at
-        the lift of the viscous analysis, :meth:`AeroResult.cp_at`). Positive p pushes on the
-        surface, i.e. acts against its outward normal; suction is negative. Times the span
-        (1000 mm) it is the line load on the beam [N/mm].
+        Gauge pressure ``p = q Cp`` [MPa = N/mm²] (q of the flight condition, Cp of the
+        panel solution matched to the viscous one, :meth:`AeroResult.cp_at`). Positive p
+        pushes on the surface, i.e. acts against its outward normal; suction is negative.
+        Times the span (1000 mm) it is the line load on the beam [N/mm].
     """
     return result.condition.q_mpa * result.cp_at(points)
 

@@ -231,6 +231,28 @@ class Contour:
         return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]],
                         axis=-1) / self.chord
 
+    def at_x(self, xc: ArrayLike, upper: bool) -> FloatArray:
+        """Spline parameters of the points at chord-frame abscissae ``xc`` (x/c in [0, 1]) on
+        the upper or lower surface: Newton's method on the spline from a dense sample."""
+        xc = np.atleast_1d(np.asarray(xc, dtype=float))
+        if np.any(xc < 0.0) or np.any(xc > 1.0):
+            raise ModelError("xc must lie in [0, 1]")
+        s = (np.linspace(0.0, self.s_le, 401) if upper
+             else np.linspace(self.s_le, self.length, 401))
+        x = self.normalized(self(s))[:, 0]
+        order = np.argsort(x)
+        s_k = np.interp(xc, x[order], s[order])
+        lo, hi = s[0], s[-1]
+        for _ in range(20):
+            p, dp = self.normalized(self(s_k)), self(s_k, 1)
+            a = self.chord_angle
+            dx = (np.cos(a) * dp[:, 0] + np.sin(a) * dp[:, 1]) / self.chord
+            step = (p[:, 0] - xc) / dx
+            s_k = np.clip(s_k - step, lo, hi)
+            if np.max(np.abs(step)) < 1e-13 * self.length:
+                break
+        return s_k
+
     def locate(self, points: ArrayLike) -> FloatArray:
         """Spline parameter of the contour point nearest to each of ``points`` (m, 2): the
         nearest point of the polyline, refined by Newton's method on the spline."""
