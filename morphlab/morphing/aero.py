@@ -83,6 +83,8 @@ class AeroResult:
         RMS residual of the CST fit, in y/c.
     nodes : ndarray, shape (N + 1, 2)
         Panel nodes [mm] (trailing edge, upper surface, nose, lower surface).
+    s_nodes : ndarray, shape (N + 1,)
+        Their parameters on :attr:`contour`.
     cp : ndarray, shape (N + 1,)
         Inviscid Cp at the nodes, at :attr:`alpha_inviscid` (NaN at the two trailing-edge
         nodes, see :meth:`~morphlab.morphing.panel.PanelSolution.cp`).
@@ -108,6 +110,7 @@ class AeroResult:
     contour: Contour
     fit_rms: float
     nodes: FloatArray
+    s_nodes: FloatArray
     cp: FloatArray
     alpha_inviscid: float
     cp_match_rms: float
@@ -134,8 +137,8 @@ class AeroResult:
         """Inviscid Cp at points on (or next to) the contour, shape (m,): each point is
         projected onto the spline and Cp is interpolated linearly in the contour parameter
         between the panel nodes."""
-        s_nodes = self.contour.locate(self.nodes[1:-1])  # trailing-edge nodes: no Cp
-        return np.interp(self.contour.locate(points), s_nodes, self.cp[1:-1])
+        # the trailing-edge nodes carry no Cp
+        return np.interp(self.contour.locate(points), self.s_nodes[1:-1], self.cp[1:-1])
 
     def summary(self) -> str:
         """One line: CL, CD [counts], L/D, CM, transition, peak suction."""
@@ -274,14 +277,14 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
     alpha = (float(condition.alpha) if condition.alpha is not None
              else _alpha_for_cl(fit, condition, model_size))
     out = _evaluate(fit, condition, alpha, model_size)
-    nodes = contour.resample(n_panels)
+    s_nodes = contour.panel_parameters(n_panels)
+    nodes = contour(s_nodes)
     panels = panel_solution(nodes, chord=condition.chord)
     cl = float(out["cl"][0])
     nf = _neuralfoil()
     bl_x = np.asarray(nf.bl_x_points, dtype=float)
     cp_u = 1.0 - np.array([out[f"upper_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
     cp_l = 1.0 - np.array([out[f"lower_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
-    s_nodes = contour.locate(nodes)
     alpha_inv = panels.alpha_for_cl(cl)
     if cp_match == "skin":
         alpha_inv = _match_skin(panels, contour, s_nodes, bl_x, cp_u, cp_l, match_xc, alpha_inv)
@@ -294,7 +297,7 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
         condition=condition, alpha=alpha, cl=cl, cd=float(out["cd"][0]), cm=float(out["cm"][0]),
         xtr_upper=float(out["Top_Xtr"][0]), xtr_lower=float(out["Bot_Xtr"][0]),
         confidence=float(out["analysis_confidence"][0]), contour=contour, fit_rms=fit.rms,
-        nodes=nodes, cp=cp, alpha_inviscid=alpha_inv,
+        nodes=nodes, s_nodes=s_nodes, cp=cp, alpha_inviscid=alpha_inv,
         cp_match_rms=float(np.sqrt(np.mean(miss * miss))), bl_x=bl_x, cp_upper=cp_u,
         cp_lower=cp_l)
 
@@ -315,7 +318,10 @@ def skin_pressure(result: AeroResult, points: ArrayLike) -> FloatArray:
         Gauge pressure ``p = q Cp`` [MPa = N/mm²] (q of the flight condition, Cp of the
         panel solution matched to the viscous one, :meth:`AeroResult.cp_at`). Positive p
         pushes on the surface, i.e. acts against its outward normal; suction is negative.
-        Times the span (1000 mm) it is the line load on the beam [N/mm].
+        Times the span (1000 mm) it is the line load on the beam [N/mm]. The skin runs
+        counter-clockwise (F -> nose -> G), so its outward normal is the right-hand normal of
+        the element direction (node k -> k + 1) and a positive p acts along the left-hand
+        one, into the section.
     """
     return result.condition.q_mpa * result.cp_at(points)
 

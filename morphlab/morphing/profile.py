@@ -215,13 +215,17 @@ class Contour:
         u = 0.5 * (1.0 - np.cos(np.pi * np.linspace(0.0, 1.0, n_per_side)))
         return self.s_le * u, self.s_le + (self.length - self.s_le) * u
 
-    def resample(self, n_panels: int) -> FloatArray:
-        """Panel nodes for :func:`~morphlab.morphing.panel.panel_solution`: ``n_panels + 1``
-        points (n_panels even), clustered at the trailing and leading edges."""
+    def panel_parameters(self, n_panels: int) -> FloatArray:
+        """Spline parameters of :meth:`resample`'s nodes, shape (n_panels + 1,)."""
         if n_panels < 16 or n_panels % 2:
             raise ModelError(f"n_panels must be an even number >= 16, got {n_panels}")
         up, low = self.sides(n_panels // 2 + 1)
-        return self(np.concatenate([up, low[1:]]))
+        return np.concatenate([up, low[1:]])
+
+    def resample(self, n_panels: int) -> FloatArray:
+        """Panel nodes for :func:`~morphlab.morphing.panel.panel_solution`: ``n_panels + 1``
+        points (n_panels even), clustered at the trailing and leading edges."""
+        return self(self.panel_parameters(n_panels))
 
     def normalized(self, xy: ArrayLike) -> FloatArray:
         """Points in the chord frame: leading edge at (0, 0), trailing edge at (1, 0)."""
