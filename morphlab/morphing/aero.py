@@ -212,25 +212,22 @@ def _alpha_for_cl(fit, condition: FlightCondition, model_size: str) -> float:
     raise ModelError(f"no angle of attack found for cl {condition.cl} (residual {res:.2e})")
 
 
-def _match_skin(panels, contour: Contour, s_nodes, bl_x, cp_upper, cp_lower, match_xc,
-                alpha0: float) -> float:
-    """Angle of attack [deg] whose panel Cp best fits NeuralFoil's Cp at the stations with
-    x/c <= match_xc (Gauss-Newton on the least-squares residual, from ``alpha0``)."""
-    sel = bl_x <= match_xc
-    s_st = np.concatenate([contour.at_x(bl_x[sel], True), contour.at_x(bl_x[sel], False)])
-    target = np.concatenate([cp_upper[sel], cp_lower[sel]])
-    s_in = s_nodes[1:-1]
+def _match_skin(panels, s_in, s_st, target, alpha0: float) -> float:
+    """Angle of attack [deg] whose panel Cp (nodes at parameters ``s_in``, the trailing edge
+    left out) best fits ``target`` at the parameters ``s_st``: Gauss-Newton on the
+    least-squares residual, from ``alpha0``."""
     a = np.radians(alpha0)
     for _ in range(100):
-        g = np.cos(a) * panels.gamma0 + np.sin(a) * panels.gamma90
-        dg = -np.sin(a) * panels.gamma0 + np.cos(a) * panels.gamma90
-        r = np.interp(s_st, s_in, (1.0 - g * g)[1:-1]) - target
-        jac = np.interp(s_st, s_in, (-2.0 * g * dg)[1:-1])
+        g = (np.cos(a) * panels.gamma0 + np.sin(a) * panels.gamma90)[1:-1]
+        dg = (-np.sin(a) * panels.gamma0 + np.cos(a) * panels.gamma90)[1:-1]
+        r = np.interp(s_st, s_in, 1.0 - g * g) - target
+        jac = np.interp(s_st, s_in, -2.0 * g * dg)
         step = np.dot(jac, r) / np.dot(jac, jac)
         a -= step
         if abs(step) < 1e-14:
-            break
-    return float(np.degrees(a))
+            return float(np.degrees(a))
+    raise ModelError(f"the panel solution's fit to the viscous Cp did not converge (last step "
+                     f"{step:.2e} rad); use cp_match='lift'")
 
 
 def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: str = "xlarge",
@@ -285,14 +282,15 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
     bl_x = np.asarray(nf.bl_x_points, dtype=float)
     cp_u = 1.0 - np.array([out[f"upper_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
     cp_l = 1.0 - np.array([out[f"lower_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
-    alpha_inv = panels.alpha_for_cl(cl)
-    if cp_match == "skin":
-        alpha_inv = _match_skin(panels, contour, s_nodes, bl_x, cp_u, cp_l, match_xc, alpha_inv)
-    cp = panels.cp(alpha_inv)
+    # NeuralFoil's stations on the skin (both surfaces) and its viscous Cp there
     sel = bl_x <= match_xc
     s_st = np.concatenate([contour.at_x(bl_x[sel], True), contour.at_x(bl_x[sel], False)])
-    miss = (np.interp(s_st, s_nodes[1:-1], cp[1:-1])
-            - np.concatenate([cp_u[sel], cp_l[sel]]))
+    cp_st = np.concatenate([cp_u[sel], cp_l[sel]])
+    alpha_inv = panels.alpha_for_cl(cl)
+    if cp_match == "skin":
+        alpha_inv = _match_skin(panels, s_nodes[1:-1], s_st, cp_st, alpha_inv)
+    cp = panels.cp(alpha_inv)
+    miss = np.interp(s_st, s_nodes[1:-1], cp[1:-1]) - cp_st
     return AeroResult(
         condition=condition, alpha=alpha, cl=cl, cd=float(out["cd"][0]), cm=float(out["cm"][0]),
         xtr_upper=float(out["Top_Xtr"][0]), xtr_lower=float(out["Bot_Xtr"][0]),
