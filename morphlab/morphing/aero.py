@@ -25,6 +25,12 @@ Two tools, each for what it does well:
 The pressure on the skin is the gauge pressure ``p = q Cp`` [MPa]: positive pushes on the
 surface (acts against the outward normal), negative (suction) pulls it outward.
 
+Coupling with the structure (a static aeroelastic iteration): :func:`skin_loads` takes the
+skin's nodes and returns the nodal pressure [MPa] of the section they shape, at the flight
+condition (with a target CL the angle of attack is found again for every shape: the weight
+sets the lift); applied as a follower pressure on the skin (its width is the span), solved,
+and repeated with the new nodes until they stop moving. One call takes ~20 ms.
+
 Units: coordinates in mm, pressures in MPa (N/mm²), angles in degrees, flight data in SI
 (:mod:`~morphlab.morphing.flight`).
 """
