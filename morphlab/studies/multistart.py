@@ -18,12 +18,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError, StudyError
+from .executors import in_process, make_executor
 from .optimize import optimize
 from .optimize_result import OptimizationResult
 from .problem import Problem
 from .samplers import latin_hypercube
 from .sweep_result import design_table
-from .tasks import describe, ensure_warm, in_process, make_executor
+from .tasks import describe, ensure_warm
 
 
 @dataclass

@@ -32,11 +32,11 @@ from scipy.special import ndtr
 
 from ..errors import StudyError
 from .distributions import joint
+from .executors import make_executor
 from .form import SearchOptions, beta_of, importance_factors, search
 from .function_task import with_gradients
 from .statistics import check_allowables
 from .sweep import sweep
-from .tasks import make_executor
 
 
 @dataclass

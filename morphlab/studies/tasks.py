@@ -52,7 +52,7 @@ class SimulationTask:
         The run's options: a :class:`morphlab.Settings`, or a dict of its fields (``t_end``,
         ``dt`` [s], ...) that may also hold the other keyword options of
         :func:`morphlab.simulate` (``max_halvings``, ``store``, ``q0``, ``v0``) or, with
-        gradients, of :func:`morphlab.sensitivities` (``step``, ``refine``, ``store``).
+        gradients, of :func:`morphlab.sensitivities` (``store``, ``progress``).
     gradients : bool or list of str
         ``False``: values only (:func:`morphlab.simulate`); ``True``: derivatives by every
         design variable; a list: by these variables (:func:`morphlab.sensitivities`).
