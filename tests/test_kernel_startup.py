@@ -4,7 +4,7 @@ import os
 import subprocess
 import sys
 
-from morphlab.solve import cache
+from morphlab.jit import cache
 
 
 def test_announced_once_on_a_cold_cache(monkeypatch, capsys):
@@ -26,7 +26,7 @@ def test_silent_on_a_warm_cache(monkeypatch, capsys):
 
 def test_numba_cache_dir_is_respected(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
-    out = subprocess.run([sys.executable, "-c", "from morphlab.solve.cache import "
+    out = subprocess.run([sys.executable, "-c", "from morphlab.jit.cache import "
                           "kernel_cache_dir; print(kernel_cache_dir())"], env=env,
                          capture_output=True, text=True, check=True).stdout
     assert out.strip().startswith(str(tmp_path))

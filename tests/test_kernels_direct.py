@@ -1,6 +1,6 @@
 """The direct-differentiation kernels against independent NumPy/SciPy evaluations.
 
-``update_sensitivities`` must apply the primal's Newmark update (``morphlab.solve.scheme``) to
+``store`` must apply the primal's Newmark update (``morphlab.solve.scheme``) to
 sensitivity columns, and ``csc_residual`` must be ``b - A x`` for a CSC matrix; both are checked
 on random data for both schemes' coefficients (exact arithmetic up to round-off: 1e-14).
 The pseudo-loads themselves are verified end to end against whole-run complex step in
@@ -10,10 +10,12 @@ tests/test_sensitivity_direct.py.
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from morphlab.kernels.direct import csc_residual, update_sensitivities
+from morphlab.kernels.direct import Direct, csc_residual, store
 
 from morphlab.solve.scheme import (
+    INITIAL,
     GeneralizedAlpha,
+    kernel_scheme,
     newmark_predict,
     newmark_update,
     step_coefficients,
@@ -31,8 +33,7 @@ def test_update_is_the_primal_newmark_update(scheme):
     DQ, DV, DA, DG, DLAM = (np.ascontiguousarray(np.moveaxis(h, -1, 0)) for h in hist)
     x = rng.normal(size=(n_dof + n_con, n_x))
     scale = 3.5
-    pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
-    update_sensitivities(DQ, DV, DA, DG, DLAM, 2, x, scale, n_dof, pc, np.array(coef.upd))
+    store(_direct(DQ, DV, DA, DG, DLAM), _scheme(coef, scale), x, 2)
     DQ, DV, DA, DG, DLAM = (np.moveaxis(h, 0, -1) for h in (DQ, DV, DA, DG, DLAM))
     q, v, a, g, _ = (h[1] for h in hist)
     qh, vh = newmark_predict(coef, q, v, a, g)
@@ -53,7 +54,7 @@ def test_initial_entry_sets_accelerations_and_multipliers_only():
     DQ[:, 0] = rng.normal(size=(n_x, n_dof))
     q0 = DQ[:, 0].copy()
     x = rng.normal(size=(n_dof + n_con, n_x))
-    update_sensitivities(DQ, DV, DA, DG, DLAM, 0, x, 2.0, n_dof, np.zeros(7), np.zeros(3))
+    store(_direct(DQ, DV, DA, DG, DLAM), _scheme(INITIAL, 2.0), x, 0)
     np.testing.assert_array_equal(DA[:, 0], x[:n_dof].T)
     np.testing.assert_array_equal(DG[:, 0], x[:n_dof].T)
     np.testing.assert_array_equal(DLAM[:, 0], 2.0 * x[n_dof:].T)
@@ -85,10 +86,22 @@ def test_two_level_buffer_of_the_algorithmic_acceleration():
     ring[3] = np.ascontiguousarray(np.stack([full[3][:, 4], full[3][:, 3]], axis=1))
     # levels 4, 3 stored at 4 % 2, 3 % 2
     x = rng.normal(size=(n_dof + n_con, n_x))
-    pc = np.array((coef.h,) + tuple(coef.pred) + (coef.bh2, coef.gh))
-    upd = np.array(coef.upd)
-    update_sensitivities(*full, 4, x, 1.5, n_dof, pc, upd)
-    update_sensitivities(*ring, 4, x, 1.5, n_dof, pc, upd)
+    store(_direct(*full), _scheme(coef, 1.5), x, 4)
+    store(_direct(*ring), _scheme(coef, 1.5), x, 4)
     np.testing.assert_array_equal(ring[3][:, 0], full[3][:, 4])  # new level written at 4 % 2
     np.testing.assert_array_equal(ring[0][:, 4], full[0][:, 4])
     np.testing.assert_array_equal(ring[1][:, 4], full[1][:, 4])
+
+
+def _direct(DQ, DV, DA, DG, DLAM):
+    """A :class:`~morphlab.kernels.direct.Direct` holding the histories (the rest unused by
+    ``store``)."""
+    none = np.zeros(0)
+    return Direct(DQ, DV, DA, DG, DLAM, None, True, 0, none.reshape(0, 0), none.reshape(0, 0),
+                  none.reshape(0, 0), none.reshape(0, 0), none, none, none,
+                  np.zeros(0, dtype=np.bool_), none.reshape(0, 0), none, None)
+
+
+def _scheme(coef, scale):
+    """The kernels' scheme of ``coef`` with the constraint scale ``scale``."""
+    return kernel_scheme(coef, scale, 0.0, 0.0)

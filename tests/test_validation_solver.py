@@ -11,7 +11,6 @@ import functools
 import numpy as np
 import pytest
 from models import flexible_mechanism
-from morphlab.kernels.system import DESIGN_FIELDS
 
 import morphlab as ml
 from morphlab.solve.settings import Settings
@@ -218,8 +217,10 @@ def test_singular_step_matrix_names_the_time_and_the_step(newton_path):
     SingularMatrixError in the initial solve, at t = 0, with the residual and the dominant
     equations; the dense path names the unknown whose column has no pivot."""
     system = ml.compile_model(flexible_mechanism())
-    stp = Stepper.dynamic(system, Settings(t_end=0.01, dt=1e-3, **PATHS[newton_path]))
-    stp.S = stp.S._replace(**{f: getattr(stp.S, f) * 0.0 for f in DESIGN_FIELDS})
+    settings = Settings(t_end=0.01, dt=1e-3, **PATHS[newton_path])
+    system.design[:] = 0.0  # every design field (a view of it) zero
+    stp = Stepper.dynamic(system, settings, ml.compile.time_table(system, np.zeros(1)),
+                          scale=1.0)
     with pytest.raises(ml.SingularMatrixError) as err:
         stp.initial(0.0, system.q0, system.v0)
     e = err.value

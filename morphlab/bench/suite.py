@@ -18,8 +18,6 @@ shared and noisy). Cases:
 ``memory``     peak memory and time of the adjoint, 3000-element skin over 10 000 steps
                (:mod:`morphlab.bench.memory`).
 ``profile``    where the time of the morphing direct run goes (cProfile, grouped).
-``floor``      the compiled kernels of one morphing step timed alone, and the least
-               direct / primal they allow (no Python, set-up or responses counted).
 ``exudyn``     the same flexible pendulum in Exudyn (optional extra ``bench``), if installed.
 ``sweep``      parameter studies: morphing designs/s serial, local pool, Dask LocalCluster
                (if installed), the speed-ups, and the overhead per job (:mod:`.sweeps`).
@@ -44,14 +42,6 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from ..compile import compile_model
-from ..kernels.assemble import step_matrix, step_residual
-from ..kernels.direct import explicit_block, split_matrices
-from ..kernels.newton import factor_matrix, solve_factored
-from ..sensitivity.perturb import CS_STEP, complex_systems, pseudo_load_data
-from ..solve.settings import Settings
-from ..solve.superlu import PIVOT_THRESHOLD
-from ..solve.timeloop import integrate
 from ..studies.timing import interleaved_times, time_stats, timed
 from .memory import case_memory
 from .report import table
@@ -263,106 +253,6 @@ def case_profile(repeats: int, quick: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-def _per_call_us(fn, repeats: int, calls: int = 300) -> dict:
-    """Microseconds per call of ``fn``: ``calls`` calls in a row, ``repeats`` times (median,
-    min, max of the per-call means)."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(calls):
-            fn()
-        times.append(1e6 * (time.perf_counter() - t0) / calls)
-    return time_stats(times)
-
-
-#: Steps of the block whose partial derivatives the ``floor`` case times (per step).
-BLOCK = 32
-
-
-def case_floor(repeats: int, quick: bool) -> dict:
-    """The least a direct run can cost against a primal run on the morphing model, from the
-    compiled kernels of one converged step (the middle one) timed alone.
-
-    A primal step makes ``iterations`` Newton iterations, each a residual, a Newton matrix, its
-    factorization and a one-column solve. A sensitivity step needs at least the matrices of
-    the state part at the converged point (:func:`morphlab.kernels.direct.split_matrices`),
-    the partial derivatives of the 5 variables (``explicit_block``, per step of a block of
-    :data:`BLOCK` steps, as a run forms them) and one 5-column solve;
-    the products with the histories, the Newmark update and the refinement are left out.
-    ``floor = 1 + sensitivity / primal`` is direct/primal with no Python, set-up or responses
-    on either side and nothing but those kernels in the sensitivity step; below it,
-    ``one_matrix_and_solve_over_primal`` counts one matrix and the solve only (free partial
-    derivatives, a state part from a single fill). Each figure is a
-    call from Python (the dispatch of a kernel that takes the system tuple costs ~3 us of it;
-    the compiled loops pay it once per step or block)."""
-    mo = _morphing()
-    settings = Settings(**mo.SETTINGS)
-    p0 = dict(mo.DEFAULTS)
-    names = list(p0)
-    sys0 = compile_model(mo.build(p0))
-    perturbed = complex_systems(mo.build, p0, names, sys0, settings.t_end)
-    times = settings.t_start + settings.h * np.arange(settings.n_steps + 1)
-    data = pseudo_load_data(sys0, perturbed, np.full(len(names), 1j * CS_STEP), times)
-    k = settings.n_steps // 2
-    seen = {}
-
-    def keep(info):
-        if info.n == k:
-            seen["info"] = info
-
-    res = integrate(sys0, settings, observer=keep)
-    info = seen["info"]
-    stp, coef, st, old = info.stepper, info.coef, info.state, info.prev
-    ta = stp.time_arrays(st.t)
-    n, nnz, n_dof = sys0.n, sys0.nnz, sys0.n_dof
-    R, R_hist = np.empty(n), np.zeros(n)
-    common = (stp.S, info.z, info.qh, info.vh, coef.bh2, coef.gh, stp.scale,
-              coef.arrays.w_new, stp.b0, stp.b1)
-    fac = stp.newton.factorization  # the morphing model is sparse (123 unknowns)
-    no_lu, no_piv, Lx, Ux, Ud, order, pattern = fac.loop_arrays()
-    data_buf = stp.newton.data
-    b1, b5 = np.ones((n, 1)), np.ones((n, 5))
-    w1, w5 = np.empty_like(b1), np.empty_like(b5)
-    mats = np.zeros((3, nnz))
-    # a block of BLOCK steps, each from the state before step k to the state after it
-    states = [np.stack([a] + [b] * BLOCK) for a, b in ((old.q, st.q), (old.v, st.v),
-                                                       (old.a, st.a), (old.lam, st.lam))]
-    E = np.zeros((BLOCK, n, len(names)))
-    lam = st.lam / stp.scale
-    w = coef.arrays.w_new
-    kernels = {
-        "residual": lambda: step_residual(*common, *ta, n_dof, R_hist, R),
-        "matrix": lambda: step_matrix(*common, ta.F, data_buf),
-        "factorization": lambda: factor_matrix(data_buf, sys0.indices, sys0.indptr, no_lu,
-                                               no_piv, Lx, Ux, Ud, order, pattern,
-                                               PIVOT_THRESHOLD),
-        "solve, 1 column": lambda: solve_factored(b1, w1, no_lu, no_piv, Lx, Ux, Ud, pattern),
-        "solve, 5 columns": lambda: solve_factored(b5, w5, no_lu, no_piv, Lx, Ux, Ud, pattern),
-        "split matrices (state part)": lambda: split_matrices(
-            stp.S, st.q, st.v, st.a, lam, w, stp.scale, stp.b0, stp.b1, ta.F, mats),
-        "partial derivatives, 5 variables": lambda: explicit_block(
-            data.S_nom, data.W, data.D, data.parts, data.lin, *states, w, False, w, stp.scale,
-            stp.b0, stp.b1, data.TAB, data.tab_of, np.full(BLOCK, k - 1), np.full(BLOCK, k),
-            n_dof, data.pert, np.zeros((2, n), dtype=np.complex128), E),
-    }
-    us = {name: _per_call_us(fn, repeats) for name, fn in kernels.items()}
-    us["partial derivatives, 5 variables"] = {  # per step of the block
-        key: v / BLOCK if key != "runs" else v
-        for key, v in us["partial derivatives, 5 variables"].items()}
-    med = {name: v["median"] for name, v in us.items()}
-    iters = float(np.mean(res.newton_iterations[1:]))
-    primal = iters * (med["residual"] + med["matrix"] + med["factorization"]
-                      + med["solve, 1 column"])
-    sens = (med["split matrices (state part)"] + med["partial derivatives, 5 variables"]
-            + med["solve, 5 columns"])
-    # any sensitivity step forms at least one matrix at the converged point (the state part
-    # reads the derivatives there, which no Newton iteration formed) and solves the n_x columns
-    least = med["matrix"] + med["solve, 5 columns"]
-    return {"kernels_us": us, "newton_iterations_per_step": iters,
-            "primal_step_us": primal, "sensitivity_step_us": sens,
-            "floor_direct_over_primal": 1.0 + sens / primal,
-            "one_matrix_and_solve_over_primal": 1.0 + least / primal}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -384,7 +274,7 @@ def case_sweep(repeats: int, quick: bool) -> dict:
 
 CASES = {"morphing": case_morphing, "startup": case_startup, "elements": case_elements,
          "variables": case_variables, "memory": case_memory, "profile": case_profile,
-         "floor": case_floor, "exudyn": case_exudyn, "sweep": case_sweep}
+         "exudyn": case_exudyn, "sweep": case_sweep}
 
 
 def main(argv=None) -> int:

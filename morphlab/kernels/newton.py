@@ -88,36 +88,49 @@ def factor_matrix(data, csc, F, tau):
     F.Ud`` (pivots tested against the threshold ``tau``). Returns -1, or the first column
     whose pivot is exactly zero (dense) or fails the threshold (sparse: the row order no
     longer serves)."""
-    if F.order is None:
-        csc_to_dense(data, csc.indices, csc.indptr, F.LU)
-        return lu_factor(F.LU, F.piv)
-    gather, pair, b_indices, b_indptr, perm_r, work = F.order
-    Lp, Li, Up, Ui = F.pattern[0], F.pattern[1], F.pattern[2], F.pattern[3]
-    return refactor(data, gather, pair, b_indices, b_indptr, perm_r, Lp, Li, Up, Ui, F.Lx,
-                    F.Ux, F.Ud, work, tau)
+    return _factor(data, csc, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.order, F.pattern, tau)
+
+
+@inner
+def _factor(data, csc, LU, piv, Lx, Ux, Ud, order, pattern, tau):
+    # ``order`` an argument: Numba drops the branch of the other kind (not for an attribute)
+    if order is None:
+        csc_to_dense(data, csc.indices, csc.indptr, LU)
+        return lu_factor(LU, piv)
+    gather, pair, b_indices, b_indptr, perm_r, work = order
+    Lp, Li, Up, Ui = pattern[0], pattern[1], pattern[2], pattern[3]
+    return refactor(data, gather, pair, b_indices, b_indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux,
+                    Ud, work, tau)
 
 
 @inner
 def solve_factored(b, work, F):
     """Solve in place for ``b`` (n, m) with the factors ``F`` (``work``: (n, m) scratch, read
     by the sparse solve only)."""
-    if F.pattern is None:
-        lu_solve(F.LU, F.piv, b)
+    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, np.bool_(False))
+
+
+@inner
+def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern, transposed):
+    if pattern is None:
+        if transposed:
+            lu_solve_transposed(LU, piv, b)
+        else:
+            lu_solve(LU, piv, b)
     else:
-        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = F.pattern
-        sparse_solve(Lp, Li, F.Lx, Up, Ui, F.Ux, F.Ud, row_from, row_scale, col_to, col_scale,
-                     b, b, work)
+        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
+        if transposed:
+            sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
+                                    col_scale, b, b, work)
+        else:
+            sparse_solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale,
+                         b, b, work)
 
 
 @inner
 def solve_factored_transposed(b, work, F):
     """:func:`solve_factored` for the transposed matrix (the adjoint sweep)."""
-    if F.pattern is None:
-        lu_solve_transposed(F.LU, F.piv, b)
-    else:
-        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = F.pattern
-        sparse_solve_transposed(Lp, Li, F.Lx, Up, Ui, F.Ux, F.Ud, row_from, row_scale, col_to,
-                                col_scale, b, b, work)
+    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, np.bool_(True))
 
 
 @inner

@@ -114,6 +114,7 @@ from ..model import Model
 from ..model.profiles import Custom, SmoothStep
 from ..results import responses
 from ..results.responses import distance
+from ..solve.settings import Settings
 from .geometry import (  # the geometry's names, re-exported; the private ones for design.py
     C_NODE,
     CRANK_SENSE,
@@ -174,10 +175,10 @@ SKINS = {"paper": {"frames": 1, "reference": "first"},
          "accurate": {"frames": "element", "reference": "chord"}}
 #: Continuation steps of the static reference solution (half of them at the full torque).
 STATIC_STEPS = 20
-#: Keyword arguments of :func:`morphlab.simulate` for the study: 300 steps; the torque ramps up
-#: over 0.1 s and holds for 0.05 s. dt = 0.5 ms resolves the first mode (>= 13 steps per
+#: The settings of the study's runs: 300 steps; the torque ramps up over 0.1 s and holds for
+#: 0.05 s. dt = 0.5 ms resolves the first mode (>= 13 steps per
 #: period); the higher, overdamped modes are damped further by rho_inf = 0.8.
-SETTINGS: dict = {"t_end": 0.15, "dt": 5.0e-4, "rho_inf": 0.8}
+SETTINGS = Settings(t_end=0.15, dt=5.0e-4, rho_inf=0.8)
 
 
 
@@ -341,9 +342,7 @@ def study(out=None, overrides: dict | None = None, *, quick: bool = False, figur
         if k not in p0:
             raise ModelError(f"unknown design variable {k!r}; known: {sorted(p0)}")
         p0[k] = float(v)
-    settings = dict(SETTINGS)
-    if quick:
-        settings["dt"] = 2.0 * settings["dt"]
+    settings = Settings.of(SETTINGS, dt=2.0 * SETTINGS.dt) if quick else SETTINGS
     return run_study(build, p0, RESPONSES, settings, body="skin", target=target(),
                      undeformed=undeformed(), paper=PAPER, units=UNITS, out=out,
                      figures=figures, timing=timing, repeats=1 if quick else 3,

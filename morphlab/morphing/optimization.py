@@ -162,7 +162,9 @@ def _settings(settings) -> Settings:
     """The runs' options as Settings: the study's by default, a dict or a Settings."""
     if isinstance(settings, Settings):
         return settings
-    return Settings.of(**dict(le.SETTINGS if settings is None else settings))
+    if settings is None:
+        return le.SETTINGS
+    return settings if isinstance(settings, Settings) else Settings.of(**dict(settings))
 
 
 def problem(*, n_elements: int = le.N_ELEMENTS, settings: dict | Settings | None = None,

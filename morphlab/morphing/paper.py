@@ -7,6 +7,7 @@ responses and solver settings, the beam to report on and its target shape.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import pathlib
@@ -19,6 +20,8 @@ import numpy as np
 from ..errors import KinematicAccuracyWarning
 from ..results.responses import distance
 from ..sensitivity.api import sensitivities
+from ..sensitivity.strategies import Direct, FiniteDifference
+from ..solve.settings import Settings
 from ..studies.timing import interleaved_times, median_time
 
 
@@ -42,7 +45,7 @@ def _fmt(x: float) -> str:
     return f"{x:.4g}" if abs(x) >= 1e-3 or x == 0 else f"{x:.3e}"
 
 
-def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, target,
+def run_study(build, p0: dict, responses: dict, settings: Settings, *, body: str, target,
               undeformed, paper: dict, units: dict, out=None, figures: bool = True,
               timing: bool = True, repeats: int = 3, fd_step: float = 1e-6,
               progress: bool = False, notes: str = "",
@@ -53,8 +56,8 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     ----------
     build, p0, responses, settings :
         Parametric model, nominal design, response functions (must include
-        ``"ks_max_stress"`` and ``"rms_error"``; ``"max_error"`` is reported too) and
-        :func:`morphlab.simulate` keyword arguments.
+        ``"ks_max_stress"`` and ``"rms_error"``; ``"max_error"`` is reported too) and the
+        run's :class:`~morphlab.solve.settings.Settings`.
     body : str
         The beam whose stress and shape are reported.
     target, undeformed : (n_nodes, 2)
@@ -79,7 +82,7 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     """
     names = list(p0)
     sens = sensitivities(build, p0, responses, method="direct", progress=progress,
-                         **settings)
+                         settings=settings)
     res = sens.result
     final = res.node_positions(body, -1)
     e_k = np.real(distance(final, target))
@@ -99,7 +102,7 @@ def run_study(build, p0: dict, responses: dict, settings: dict, *, body: str, ta
     return study
 
 
-def _timing(build, p0: dict, responses: dict, settings: dict, repeats: int,
+def _timing(build, p0: dict, responses: dict, settings: Settings, repeats: int,
             fd_step: float) -> dict:
     """Table 2: medians [s] of interleaved rounds of the primal (as a user runs it: build,
     simulate, responses), the solver alone, direct with complex-step and with
@@ -110,30 +113,36 @@ def _timing(build, p0: dict, responses: dict, settings: dict, repeats: int,
     sys0 = compile_model(build(dict(p0)))
 
     def primal():  # one analysis of the design, as a user runs it (BENCHMARKS.md)
-        r = simulate(build(dict(p0)), **settings)
+        r = simulate(build(dict(p0)), settings=settings)
         return {k: f(r) for k, f in responses.items()}
 
     runs = {
         "primal": primal,
-        "primal_solver_only": lambda: simulate(sys0, **settings),
-        "direct": lambda: sensitivities(build, p0, responses, method="direct", **settings),
-        "direct_fd": lambda: sensitivities(build, p0, responses, method="direct-fd",
-                                           step=fd_step, **settings),
+        "primal_solver_only": lambda: simulate(sys0, settings=settings),
+        "direct": lambda: sensitivities(build, p0, responses, method="direct",
+                                        settings=settings),
+        "direct_fd": lambda: sensitivities(build, p0, responses, settings=settings,
+                                           method=Direct(partials="forward-difference",
+                                                         step=fd_step)),
+        "adjoint": lambda: sensitivities(build, p0, responses, method="adjoint",
+                                         settings=settings),
     }
     timing_s: dict = {}
     for k, times in interleaved_times(runs, repeats).items():
         timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
     timing_s["finite_difference"], timing_s["finite_difference_runs"] = median_time(
-        lambda: sensitivities(build, p0, responses, method="forward-difference",
-                              step=fd_step, **settings), max(1, repeats // 2))
-    for k in ("direct", "direct_fd", "finite_difference"):
+        lambda: sensitivities(build, p0, responses, method=FiniteDifference("forward", fd_step),
+                              settings=settings), max(1, repeats // 2))
+    for k in ("direct", "direct_fd", "adjoint", "finite_difference"):
         timing_s[f"{k}_over_primal"] = timing_s[k] / timing_s["primal"]
     timing_s["finite_difference_over_direct"] = (timing_s["finite_difference"]
                                                  / timing_s["direct"])
+    best = min(timing_s["direct"], timing_s["adjoint"])
+    timing_s["finite_difference_over_best"] = timing_s["finite_difference"] / best
     return timing_s
 
 
-def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: dict,
+def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: Settings,
              paper: dict) -> dict:
     """What ``morphing.json`` holds: responses, node errors, Table 1, Table 2, the design,
     the settings, the run's diagnostics and the paper's numbers."""
@@ -154,7 +163,7 @@ def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: d
         },
         "timing_s": {k: v for k, v in timing_s.items()},
         "design": dict(p0),
-        "settings": dict(settings),
+        "settings": dataclasses.asdict(settings),
         "diagnostics": {
             "newton_iterations_mean": float(np.mean(res.newton_iterations[1:])),
             "max_constraint_violation_mm": float(np.max(res.constraint_violation)),
@@ -193,7 +202,7 @@ def _formulation(sens, body: str, paper: dict, final_ref=None) -> dict:
     return out
 
 
-def _formulations(sens, builds: dict, p0: dict, responses: dict, settings: dict, body: str,
+def _formulations(sens, builds: dict, p0: dict, responses: dict, settings: Settings, body: str,
                   paper: dict) -> dict:
     """The study's formulation and the ``builds`` beside it (``compare`` of
     :func:`run_study`), keyed ``"study"`` and by label."""
@@ -202,7 +211,7 @@ def _formulations(sens, builds: dict, p0: dict, responses: dict, settings: dict,
     for label, b in builds.items():
         with warnings.catch_warnings():  # its kinematic error is reported in the table
             warnings.simplefilter("ignore", KinematicAccuracyWarning)
-            other = sensitivities(b, p0, responses, method="direct", **settings)
+            other = sensitivities(b, p0, responses, method="direct", settings=settings)
         out[label] = _formulation(other, body, paper, final)
     return out
 

@@ -101,6 +101,15 @@ class Settings:
     constraint_tol: float = 1e-3
     kinematic_tol: float | None = 1e-4
 
+    # read like a mapping of its fields: ``simulate(m, **settings)``, ``dict(settings, dt=...)``
+    def keys(self):
+        return [f.name for f in dataclasses.fields(self)]
+
+    def __getitem__(self, name: str):
+        if name not in self.keys():
+            raise KeyError(name)
+        return getattr(self, name)
+
     @classmethod
     def of(cls, settings: Settings | None = None, **options) -> Settings:
         """``settings`` with ``options`` replaced (or new Settings from ``options``),
