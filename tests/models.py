@@ -60,9 +60,8 @@ def check_step_matrix_by_complex_step(model, seed: int) -> None:
     step residual (h = 1e-30: no truncation or cancellation error, so agreement to round-off;
     1e-9 of the column's largest entry) at a random state far from any solution: nonzero
     velocities, accelerations and multipliers, so every term of the matrix shows."""
-    from morphlab.kernels.assemble import step_matrix, step_residual
-
     from morphlab.compile import kernel_arrays
+    from morphlab.kernels.assemble import step_matrix, step_residual
 
     system = ml.compile_model(model)
     n, n_dof = system.n, system.n_dof
@@ -100,10 +99,9 @@ def _check_split_matrices(system, Sc, z, qh, vh, bh2, gh, scale, w, b0, b1, cplx
     its largest entry), and each is the complex-step derivative of the level's residual share
     with respect to ``(a, lam/scale)``, ``q`` and ``q'`` with the other two held (1e-9 of the
     column's largest entry, as above); ``Dq`` and ``Dv`` have empty multiplier columns."""
+    from morphlab.compile import kernel_arrays
     from morphlab.kernels.assemble import add_residual
     from morphlab.kernels.direct import split_matrices
-
-    from morphlab.compile import kernel_arrays
 
     n, n_dof = system.n, system.n_dof
     q, v, a = qh + bh2 * z[:n_dof], vh + gh * z[:n_dof], z[:n_dof]

@@ -3,9 +3,9 @@ against each other (the compiled Newton loop on both: ``test_kernels_newton``)."
 
 import numpy as np
 import pytest
-from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
 
 import morphlab as ml
+from morphlab.kernels.dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])

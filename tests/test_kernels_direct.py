@@ -10,8 +10,8 @@ tests/test_sensitivity_direct.py.
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from morphlab.kernels.direct import Direct, csc_residual, store
 
+from morphlab.kernels.direct import Direct, csc_residual, store
 from morphlab.solve.scheme import (
     INITIAL,
     GeneralizedAlpha,

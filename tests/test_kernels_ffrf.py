@@ -21,11 +21,11 @@ the whole residual. Its data are O(1) in consistent units so that no term is hid
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from morphlab.kernels import ffrf
-from morphlab.kernels.system import all_parts
 from test_kernels_beam import local_shape, stiffness_reference
 
 import morphlab as ml
+from morphlab.kernels import ffrf
+from morphlab.kernels.system import all_parts
 
 H_CS = 1e-30  # complex step: no subtraction, exact to round-off for any small h
 GRAVITY = np.array([0.4, -0.8])

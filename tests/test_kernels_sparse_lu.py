@@ -4,10 +4,10 @@ dense solves, and the factorization object built on it."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from morphlab.kernels.sparse_lu import refactor, solve, symbolic
 from scipy.sparse.linalg import splu
 
 import morphlab.solve.linalg as factorization
+from morphlab.kernels.sparse_lu import refactor, solve, symbolic
 
 
 def _saddle_point(n_q=30, n_c=8, seed=3, dtype=np.float64):

@@ -33,7 +33,7 @@ from ..results.result import Result
 from .linalg import Factor
 from .scheme import StepCoefficients
 from .settings import Settings, State
-from .stepper import Stepper, StepOutcome
+from .stepper import StepOutcome, Stepper
 from .store import HISTORIES, HistoryStore, check_memory
 
 #: Wall time a compiled chunk of steps aims at [s] (the progress report's and Ctrl-C's grain).
