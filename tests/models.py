@@ -55,76 +55,90 @@ def tip_loaded_cantilever(p, n_elem=4, length=100.0, frames="element"):
     return m
 
 
+def _step_data(system, seed):
+    """A random state far from any solution (nonzero velocities, accelerations and
+    multipliers) and the step's weights; the time values at t = 0 (mid-ramp profiles are
+    not needed: the time values enter linearly)."""
+    from morphlab.compile.system import time_table
+    from morphlab.kernels.types import Weights
+
+    n_dof = system.n_dof
+    rng = np.random.default_rng(seed)
+    qh = system.q0 + 0.05 * rng.standard_normal(n_dof)
+    vh = 3.0 * rng.standard_normal(n_dof)
+    z = rng.standard_normal(system.n)
+    w = Weights(1.1, 0.9, 0.8, 1.3, 0.6, 2.0, 5.0, 3.0)
+    return qh, vh, z, w, time_table(system, np.array([0.0, 1e-3]), np.complex128)
+
+
+def _level(z, qh, vh, bh2, gh, scale, n_dof):
+    from morphlab.kernels.types import Level
+
+    a = np.ascontiguousarray(z[:n_dof])
+    return Level(qh + bh2 * a, vh + gh * a, a, np.ascontiguousarray(z[n_dof:] * scale))
+
+
 def check_step_matrix_by_complex_step(model, seed: int) -> None:
     """Assert that every column of the step matrix equals the complex-step derivative of the
     step residual (h = 1e-30: no truncation or cancellation error, so agreement to round-off;
     1e-9 of the column's largest entry) at a random state far from any solution: nonzero
-    velocities, accelerations and multipliers, so every term of the matrix shows."""
-    from morphlab.compile import kernel_arrays
-    from morphlab.kernels.assemble import step_matrix, step_residual
+    velocities, accelerations and multipliers, so every term of the matrix shows. The split
+    matrices ``D0, Dq, Dv`` of the sensitivity methods (one pass with ``C`` the identity)
+    combine to the step matrix (round-off) and each is the complex-step derivative of the
+    residual along ``(a, lam/scale)``, ``q`` and ``q'`` with the other two held."""
+    from morphlab.kernels.assemble import matrix, residual
+    from morphlab.kernels.ffrf import scratch
+    from morphlab.kernels.system import all_parts
 
     system = ml.compile_model(model)
     n, n_dof = system.n, system.n_dof
-    rng = np.random.default_rng(seed)
-    c, cd, cdd, F, T = system.time_arrays(0.0)
-    qh = system.q0 + 0.05 * rng.standard_normal(n_dof)
-    vh = 3.0 * rng.standard_normal(n_dof)
-    z = rng.standard_normal(n)
-    bh2, gh, scale, b0, b1 = 0.3, 0.7, 2.0, 5.0, 3.0
-    w = np.array([1.1, 0.9, 0.8, 1.3, 0.6])
-    data = np.zeros(system.nnz)
-    step_matrix(kernel_arrays(system), z, qh, vh, bh2, gh, scale, w, b0, b1, F, data)
+    qh, vh, z, w, Tc = _step_data(system, seed)
+    T = type(Tc)(*(None if x is None else type(x)(*(a.real.copy() for a in x)) for x in Tc))
+    bh2, gh = 0.3, 0.7
+    M = system.arrays
+    Mc = system.arrays_as(np.complex128)
+    n_flex = M.flex[0].shape[0]
+    C = np.array([[1.0, bh2, gh], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    data = np.zeros((4, system.nnz))
+    matrix(M, _level(z, qh, vh, bh2, gh, w.scale, n_dof), w, T, np.int64(0), np.int64(0), C,
+           data, scratch(n_flex, qh))
     A = np.zeros((n, n))
     for col in range(n):
         sl = slice(system.indptr[col], system.indptr[col + 1])
-        A[system.indices[sl], col] = data[sl]
-    Sc = kernel_arrays(system, np.complex128)
-    cplx = [x.astype(complex) for x in (qh, vh, c, cd, cdd, F, T)]
+        A[system.indices[sl], col] = data[0, sl]
+    P = all_parts(M)
+    Wc = scratch(n_flex, np.zeros(1, complex))
     h = 1e-30
+    zc, qc, vc = z.astype(complex), qh.astype(complex), vh.astype(complex)
     for k in range(n):
-        zk = z.astype(complex)
+        zk = zc.copy()
         zk[k] += 1j * h
         R = np.zeros(n, dtype=complex)
-        step_residual(Sc, zk, cplx[0], cplx[1], bh2, gh, scale, w, b0, b1, *cplx[2:], n_dof,
-                      np.zeros(n, dtype=complex), R)
+        residual(Mc, _level(zk, qc, vc, bh2, gh, w.scale, n_dof), w, Tc, np.int64(0),
+                 np.int64(0), P, np.int64(n_dof), R, Wc)
         col = R.imag / h
         assert np.abs(A[:, k] - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
             system.unknown_names[k]
-    _check_split_matrices(system, Sc, z, qh, vh, bh2, gh, scale, w, b0, b1, cplx, data)
-
-
-def _check_split_matrices(system, Sc, z, qh, vh, bh2, gh, scale, w, b0, b1, cplx, data):
-    """The split matrices of the sensitivity methods at the step's state: ``D0, Dq, Dv``
-    (one pass, ``split_matrices``) combine to the step matrix ``data`` (round-off: 1e-13 of
-    its largest entry), and each is the complex-step derivative of the level's residual share
-    with respect to ``(a, lam/scale)``, ``q`` and ``q'`` with the other two held (1e-9 of the
-    column's largest entry, as above); ``Dq`` and ``Dv`` have empty multiplier columns."""
-    from morphlab.compile import kernel_arrays
-    from morphlab.kernels.assemble import add_residual
-    from morphlab.kernels.direct import split_matrices
-
-    n, n_dof = system.n, system.n_dof
-    q, v, a = qh + bh2 * z[:n_dof], vh + gh * z[:n_dof], z[:n_dof]
-    lam = z[n_dof:] * scale
-    D = np.zeros((3, system.nnz))
-    split_matrices(kernel_arrays(system), q, v, a, lam, w, scale, b0, b1, cplx[5].real, D)
-    assert np.abs(D[0] + bh2 * D[1] + gh * D[2] - data).max() <= 1e-13 * np.abs(data).max()
-    h = 1e-30
+    # the split matrices
+    assert np.abs(data[1] + bh2 * data[2] + gh * data[3] - data[0]).max() <= \
+        1e-13 * np.abs(data[0]).max()
+    x0 = _level(zc, qc, vc, bh2, gh, w.scale, n_dof)
     for k in range(n):
         sl = slice(system.indptr[k], system.indptr[k + 1])
         for which in range(3):  # 0: a or lam/scale, 1: q, 2: q'
             if k >= n_dof and which > 0:
-                assert not D[which, sl].any(), system.unknown_names[k]
+                assert not data[1 + which, sl].any(), system.unknown_names[k]
                 continue
-            x = [q.astype(complex), v.astype(complex), a.astype(complex), lam.astype(complex)]
+            x = [a.copy() for a in x0]
             if k >= n_dof:
-                x[3][k - n_dof] += 1j * h * scale
+                x[3][k - n_dof] += 1j * h * w.scale
             else:
                 x[(2, 0, 1)[which]][k] += 1j * h
             R = np.zeros(n, dtype=complex)
-            add_residual(Sc, *x, *w, scale, b0, b1, *cplx[2:], n_dof, R)
+            residual(Mc, type(x0)(*x), w, Tc, np.int64(0), np.int64(0), P, np.int64(n_dof), R,
+                     Wc)
             col = R.imag / h
             got = np.zeros(n)
-            got[system.indices[sl]] = D[which, sl]
+            got[system.indices[sl]] = data[1 + which, sl]
             assert np.abs(got - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
                 (which, system.unknown_names[k])

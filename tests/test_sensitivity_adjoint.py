@@ -96,10 +96,11 @@ def test_adjoint_equals_direct(name, scheme):
 
 
 def test_adjoint_equals_the_whole_run_complex_step():
-    """Against the reference without truncation error: as tight as the direct method is
-    (tests/test_sensitivity_direct.py: 1e-8 of each response's gradient scale)."""
+    """Against the reference without truncation error, the exact variant: as tight as the
+    direct method is (tests/test_sensitivity_direct.py: 1e-8 of each response's gradient
+    scale)."""
     build, p0, resp = adjoint_responses("mechanism")
-    a = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
+    a = ml.sensitivities(build, p0, resp, method=ml.Adjoint(reuse=False), **RUN)
     cs = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
     for r in resp:
         scale = max(abs(g) for g in cs.gradients[r].values())
@@ -199,101 +200,3 @@ def test_adjoint_equals_direct_with_a_thickness_per_element(n_elements, scheme):
         scale = max(abs(g) for g in d.gradients[r].values())
         worst = max(abs(a.gradients[r][v] - d.gradients[r][v]) for v in p0)
         assert worst <= tol * scale, (r, worst / scale)
-
-
-def test_designs_compiled_during_the_primal_give_the_same_gradients(monkeypatch):
-    """On two or more cores the adjoint compiles the perturbed designs on a thread while the
-    primal runs (perturb.ComplexDesigns); on one core, before it. The same systems enter the
-    same sweep: the gradients agree bit for bit."""
-    from morphlab.sensitivity import api
-
-    build, p0, resp = adjoint_responses("mechanism")
-    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
-    a = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
-    monkeypatch.setattr(api.os, "cpu_count", lambda: 1)
-    b = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
-    assert a.stats["designs_in_background"] and not b.stats["designs_in_background"]
-    assert a.values == b.values and a.gradients == b.gradients
-
-
-@pytest.mark.parametrize("name", CASES)
-def test_designs_still_compiling_during_the_sweep_give_the_same_gradients(name, monkeypatch):
-    """The designs' thread held until the sweep asks for them: every block's design share
-    waits (``deferred_shares``) while the state sweep runs, and is added in the same order
-    later, so the gradients equal those of a run whose designs were ready, bit for bit."""
-    import threading
-
-    from morphlab.sensitivity import adjoint, api
-
-    build, p0, resp = adjoint_responses(name)
-    monkeypatch.setattr(api.os, "cpu_count", lambda: 1)  # designs compiled before the primal
-    ready = ml.sensitivities(build, p0, resp, method="adjoint", **RUN)
-    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
-    go = threading.Event()
-
-    def held(p):
-        if any(isinstance(x, complex) for x in p.values()):
-            assert go.wait(60), "the sweep never asked for the designs"
-        return build(p)
-
-    finish = adjoint._Sweep.finish
-
-    def release(self):
-        go.set()
-        finish(self)
-
-    monkeypatch.setattr(adjoint._Sweep, "finish", release)
-    late = ml.sensitivities(held, p0, resp, method="adjoint", **RUN)
-    assert ready.stats["deferred_shares"] == 0
-    assert late.stats["deferred_shares"] > 0
-    assert late.values == ready.values and late.gradients == ready.gradients
-
-
-def test_a_design_that_fails_on_its_thread_stops_the_primal(monkeypatch):
-    """A perturbed design that cannot be built raises its SensitivityError in the caller's
-    thread at the next step of the primal, not after the whole run."""
-    from morphlab.sensitivity import api
-
-    monkeypatch.setattr(api.os, "cpu_count", lambda: 2)
-    build, p0, resp = adjoint_responses("pendulum")
-
-    def fragile(p):
-        if isinstance(p["t"], complex):
-            raise ValueError("no complex thickness here")
-        return build(p)
-
-    steps = []
-    run = dict(RUN, t_end=5.0)  # 5000 steps
-    with pytest.raises(ml.SensitivityError, match="ValueError: no complex thickness"):
-        ml.sensitivities(fragile, p0, resp, method="adjoint",
-                         progress=lambda n, n_steps, t: steps.append(n), **run)
-    assert len(steps) < 4000, len(steps)  # 5000 if it waited for the end of the run
-
-
-def test_concurrent_background_compiles_restore_the_switch_interval():
-    """Two sensitivity runs of one process overlapping (threads of a Dask worker): Python's
-    switch interval is short while either compiles and the caller's own afterwards."""
-    import sys
-    import threading
-
-    from morphlab.sensitivity import perturb
-
-    before = sys.getswitchinterval()
-    entered, release = threading.Barrier(3), threading.Event()
-
-    def hold():
-        with perturb._short_switch_interval():
-            entered.wait()
-            release.wait()
-
-    threads = [threading.Thread(target=hold) for _ in range(2)]
-    for t in threads:
-        t.start()
-    entered.wait()
-    # (Python keeps the interval in microseconds)
-    assert sys.getswitchinterval() == pytest.approx(min(before, perturb.SWITCH_INTERVAL),
-                                                    rel=1e-9)
-    release.set()
-    for t in threads:
-        t.join()
-    assert sys.getswitchinterval() == before

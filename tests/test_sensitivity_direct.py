@@ -131,13 +131,17 @@ def responses_for(name):
 
 
 CASES = ("pendulum", "mechanism")
+#: The exact variant (matrices at each step's converged state, refined): equal to the
+#: whole-run complex step to round-off. The default (``reuse=True``, the primal's last Newton
+#: matrices) is exact to the Newton tolerance: test_reuse_variant_is_exact_to_the_newton_tol.
+EXACT = Direct(reuse=False)
 
 
 @pytest.fixture(scope="module", params=CASES)
 def runs(request):
     build, p0, resp = responses_for(request.param)
     # store="all": the history tests below compare every sensitivity history
-    direct = ml.sensitivities(build, p0, resp, method="direct", store="all", **RUN)
+    direct = ml.sensitivities(build, p0, resp, method=EXACT, store="all", **RUN)
     reference = ml.sensitivities(build, p0, resp, method="complex-step", **RUN)
     return request.param, build, p0, direct, reference
 
@@ -171,7 +175,7 @@ def test_direct_matches_complex_step_with_the_papers_weighting(name):
     kernels.direct.state_loads). Same criterion as above; measured 4.4e-11 (pendulum) and
     1.6e-11 (four-bar) relative, the largest entry above the floor."""
     build, p0, resp = responses_for(name)
-    direct = ml.sensitivities(build, p0, resp, method="direct", scheme="paper", **RUN)
+    direct = ml.sensitivities(build, p0, resp, method=EXACT, scheme="paper", **RUN)
     ref = ml.sensitivities(build, p0, resp, method="complex-step", scheme="paper", **RUN)
     for r, g_ref in ref.gradients.items():
         scaled = {v: abs(p0[v] * g_ref[v]) for v in p0}
@@ -229,15 +233,31 @@ def _count_factorizations(monkeypatch):
     ``morphlab.solve.linalg.lu_factor``, and SciPy's ``spsolve``, ``factorized``, ``spilu``.
     The compiled Newton loop (``morphlab.kernels.newton``) factors where no counter can see
     it, so the solver iterates from Python in the tests below (``compiled_newton=False``, the
-    same iterates), which take the sparse path (``dense_max=0``)."""
-    calls = {"n": 0}
+    same iterates), which take the sparse path (``dense_max=0``). A new row order for a
+    matrix (``StepFactorization._new_row_order``) counts once: it factors the matrix with
+    SuperLU to choose the order and again with the compiled refactorization in that order,
+    so that the later steps and a compiled chunk continue from identical factors."""
+    calls = {"n": 0, "mute": 0}
 
     def wrap(fn, done=lambda out: True):
         def counted(*args, **kwargs):
             out = fn(*args, **kwargs)
-            calls["n"] += bool(done(out))
+            calls["n"] += bool(done(out)) and not calls["mute"]
             return out
         return counted
+
+    renew = morphlab.solve.linalg.StepFactorization._new_row_order
+
+    def renew_counted(self, data):
+        calls["n"] += not calls["mute"]
+        calls["mute"] += 1
+        try:
+            return renew(self, data)
+        finally:
+            calls["mute"] -= 1
+
+    monkeypatch.setattr(morphlab.solve.linalg.StepFactorization, "_new_row_order",
+                        renew_counted)
 
     for mod in (scipy.sparse.linalg, morphlab.solve.linalg, morphlab.solve.superlu,
                 morphlab.solve.stepper, morphlab.sensitivity.api, morphlab.sensitivity.direct):
@@ -279,45 +299,62 @@ def test_refinement_residuals_at_round_off(name):
     solve of these ~20-40 unknowns leaves O(n eps ||J|| ||x|| / ||b||); measured <= 4e-14 on
     both models. 1e-12 leaves a factor 25."""
     build, p0, resp = responses_for(name)
-    sens = ml.sensitivities(build, p0, resp, method="direct", **RUN)
-    res = sens.stats["refinement_residual"]
-    # refinement runs on steps whose last Newton correction exceeded the refinement threshold;
-    # with tol=1e-10 several steps of these runs stop with a correction above 1e-12 (9 and 5)
-    assert len(res) == sens.stats["refined_steps"] > 0
-    assert max(res) < 1e-12
+    sens = ml.sensitivities(build, p0, resp, method=EXACT, **RUN)
+    res = np.asarray(sens.stats["refinement_residual"])
+    # the exact variant refines every step (one refinement, refine=1)
+    assert res.size == sens.stats["refined_steps"] == sens.result.t.size
+    assert np.all(np.isfinite(res)) and res.max() < 1e-12
 
 
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
 @pytest.mark.parametrize("name", CASES)
-def test_block_size_does_not_change_the_sensitivities(name, scheme):
-    """A direct run keeps the converged steps and solves their sensitivities in blocks
-    (``Direct(block_bytes=...)``): the same kernels on the same data, called at other times,
-    so one step per block, a few steps per block and the whole run in one block must give the
-    same numbers bit for bit. For the sparse path as well (``dense_max=0``), whose recursion
-    runs from Python where SuperLU chose a row order instead of in one compiled call, and for
-    the paper's weighting, whose residual also reads the state at the start of each step (for
-    a block's first step that state belongs to the previous block)."""
+def test_chunking_does_not_change_the_sensitivities(monkeypatch, name, scheme):
+    """The time loop runs compiled chunks of steps (``CHUNK_SECONDS`` of work each) and the
+    sensitivities of a chunk's steps right after it: the same kernels on the same data,
+    called at other times, so one step per chunk and the whole run in one chunk give the same
+    numbers bit for bit, in both variants. For the sparse path as well (``dense_max=0``) and
+    for the paper's weighting, whose residual also reads the state at the start of each step
+    (for a chunk's first step that state belongs to the previous chunk)."""
+    import morphlab.solve.timeloop as timeloop
+
     build, p0, resp = responses_for(name)
-    default = Direct().block_bytes
-    # (dense_max: dense factors for both models, or sparse; a budget of a few steps: ~7-17 kB
-    # per step here with dense factors; on the sparse path ~4-7 kB with refactored ones,
-    # ~45 kB with SuperLU's where it chose a new row order, by
-    # morphlab.sensitivity.direct._factor_bytes)
-    for dense_max, few in ((1000, 60_000), (0, 100_000)):
-        runs = []
-        for block_bytes in (default, 1, few):
-            runs.append(ml.sensitivities(build, p0, resp, method=Direct(block_bytes=block_bytes),
-                                         store="all", scheme=scheme, dense_max=dense_max,
-                                         **RUN))
-        n_steps = runs[0].result.t.size - 1
-        # initial solve, then all steps in one block / one per block / a few per block
-        assert [r.stats["blocks"] for r in runs][:2] == [2, n_steps + 1]
-        assert 2 < runs[2].stats["blocks"] < n_steps + 1
-        for r in runs[1:]:
-            assert r.gradients == runs[0].gradients
+    for dense_max in (1000, 0):
+        for method in (Direct(), EXACT):
+            runs = []
+            for seconds in (1e9, 0.0):  # the whole run in one chunk / a step per chunk
+                monkeypatch.setattr(timeloop, "CHUNK_SECONDS", seconds)
+                runs.append(ml.sensitivities(build, p0, resp, method=method, store="all",
+                                             scheme=scheme, dense_max=dense_max, **RUN))
+            assert runs[1].gradients == runs[0].gradients
             for key in ("q", "v", "a", "lam"):
-                np.testing.assert_array_equal(r.state[key], runs[0].state[key])
-            assert r.stats["refinement_residual"] == runs[0].stats["refinement_residual"]
+                np.testing.assert_array_equal(runs[1].state[key], runs[0].state[key])
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_reuse_variant_is_exact_to_the_newton_tolerance(name):
+    """The default variant solves each step's sensitivities with the primal's last Newton
+    matrix and blocks, formed at the iterate before the last correction: its error is of the
+    order of that correction, bounded by the Newton tolerance (positions, relative to the
+    model size). Against the exact variant, scaled as above: at tol = 1e-10 within 1e-5
+    (measured <= 8e-7: the error of one step, ~tol, grows over the run with the
+    sensitivities' own dynamics), and it falls with the tolerance (tol = 1e-12: ten times
+    smaller at least; measured ~100: quadratic convergence makes the last correction far
+    below the tolerance)."""
+    build, p0, resp = responses_for(name)
+    errors = []
+    for tol in (1e-10, 1e-12):
+        exact = ml.sensitivities(build, p0, resp, method=EXACT, tol=tol, **RUN)
+        reuse = ml.sensitivities(build, p0, resp, method=Direct(), tol=tol, **RUN)
+        worst = 0.0
+        for r, g in exact.gradients.items():
+            scaled = {v: abs(p0[v] * g[v]) for v in p0}
+            largest = max(scaled.values())
+            for v in p0:
+                err = abs(p0[v] * (reuse.gradients[r][v] - g[v]))
+                worst = max(worst, err / max(scaled[v], FLOOR * largest))
+        errors.append(worst)
+    assert errors[0] <= 1e-5, errors
+    assert errors[1] <= 0.1 * errors[0], errors
 
 
 def test_store_auto_keeps_the_histories_the_responses_read():
@@ -339,43 +376,48 @@ def test_store_auto_keeps_the_histories_the_responses_read():
 
 
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
-def test_stiffness_only_variables_take_real_products(monkeypatch, scheme):
-    """E and the coupler's damping coefficient ``beta`` change the element stiffness matrices
-    and the stiffness-proportional damping and nothing else the residual reads, so their
-    partial derivative is ``w_f (dK_e q_e + d(beta K_e) q_e')`` per element in real
-    arithmetic (``perturb.stiffness_split``) instead of a residual of complex data over the
-    coupler. That path must be taken for those two and for no other variable of the
-    four-bar, and give what the complex residual gives, for the direct method, its
-    forward-difference variant and the adjoint, with both weightings: the two compute the
-    same products in another order, so they agree to round-off of the recursion (measured
-    on the morphing model: < 4e-15 relative for the complex step; the forward difference of
-    the complex-residual path carries the rounding of ``R(p + h) - R(p)``, 5e-11 relative:
-    1e-9 asserted for it)."""
-    from morphlab.sensitivity import perturb
+def test_linear_variables_take_real_products(monkeypatch, scheme):
+    """A variable whose changed data the residual is linear in (``Field.linear``: E, the
+    coupler's thickness and density change its invariants and element matrices, the crank's
+    mass its invariants, the torque and force magnitudes their loads; the data themselves
+    may depend on the variable in any way) takes the linear path of the pseudo-loads: the
+    kernels evaluated in real arithmetic with the derivative data in place of the data. The
+    others (x_D moves the geometry and the initial state; the damping coefficient ``beta``
+    multiplies the stiffness, bilinear) take the perturbed path, a residual of complex
+    data. Forcing every variable through the perturbed
+    path must give the same gradients: the two compute the same products in another order,
+    so they agree to round-off of the recursion (1e-12 of the response's largest logarithmic
+    sensitivity), for the direct method, its forward-difference variant (the perturbed path
+    then carries the rounding of R(p + h) - R(p), ~5e-11 relative: 1e-9) and the adjoint,
+    both weightings."""
+    from morphlab.sensitivity import designs
 
     build, p0, every = responses_for("mechanism")
     p0 = {**p0, "beta": 1e-4}
     resp = {k: every[k] for k in ("displacement", "ks_stress", "rms_error")}  # with a vjp
-    split_vars = []
-    real_split = perturb.stiffness_split
+    linear_vars = []
+    real_items, real_fields = designs._items, designs._linear_fields
 
-    def spy(S_nom, D, masks, tab_of, pert):
-        lin = real_split(S_nom, D, masks, tab_of, pert)
-        split_vars.append([v for i, v in enumerate(p0) if lin[0][i + 1] > lin[0][i]])
-        return lin
+    def spy(sys0, ch):
+        items, linear, flex = real_items(sys0, ch)
+        linear_vars.append(all(linear.get(k, True) for k in items))
+        return items, linear, flex
 
-    monkeypatch.setattr(perturb, "stiffness_split", spy)
-    for method, tol in (("direct", 1e-12), ("direct-fd", 1e-9), ("adjoint", 1e-12)):
+    monkeypatch.setattr(designs, "_items", spy)
+    for method, tol in ((Direct(reuse=False), 1e-12),
+                        (Direct(reuse=False, partials="forward-difference"), 1e-9),
+                        (ml.Adjoint(reuse=False), 1e-12)):
         runs = {}
-        for split in (True, False):
-            monkeypatch.setattr(perturb, "STIFFNESS_SPLIT", split)
-            runs[split] = ml.sensitivities(build, p0, resp, method=method, scheme=scheme, **RUN)
-        assert split_vars[-2] == ["E", "beta"] and split_vars[-1] == [], method
+        for linear in (True, False):
+            monkeypatch.setattr(designs, "_linear_fields",
+                                real_fields if linear else (lambda: set()))
+            linear_vars.clear()
+            runs[linear] = ml.sensitivities(build, p0, resp, method=method, scheme=scheme,
+                                            **RUN)
+            taken = {v for v, lin in zip(p0, linear_vars) if lin}
+            assert taken == ({"E", "t", "rho", "m_crank", "M", "F"} if linear else set()), (method, taken)
         for r in runs[True].gradients:
             a, b = runs[True].gradients[r], runs[False].gradients[r]
             scale = max(abs(p0[v] * b[v]) for v in p0)  # logarithmic sensitivities
             for v in p0:
                 assert abs(p0[v] * (a[v] - b[v])) <= tol * scale, (method, r, v, a[v], b[v])
-        for v in ("E", "beta"):  # not a vacuous comparison: both move the responses
-            assert max(abs(p0[v] * g[v]) / max(abs(p0[w] * g[w]) for w in p0)
-                       for g in runs[True].gradients.values()) > FLOOR, v

@@ -40,7 +40,7 @@ def _is_complex(value) -> bool:
 def items_of(model: Model) -> list:
     """Every body, joint, load and force element of ``model``, in the order they compile."""
     return [*model.bodies, *model.joints, *model.forces, *model.line_loads, *model.torques,
-            *model.springs, *getattr(model, "pressures", ())]
+            *model.springs, *model.pressures]
 
 
 def _dtype_of(model: Model):

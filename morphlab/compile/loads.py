@@ -1,4 +1,4 @@
-"""Compile functions of the loads: point forces and torques."""
+"""Compile functions of the loads: point forces, torques, follower forces and pressures."""
 
 from __future__ import annotations
 
@@ -6,6 +6,9 @@ import numpy as np
 
 from ..model import Beam, Force, Torque
 from ..model.frames import drive_node
+from ..model.pressure import FollowerForce, Pressure
+from .beam import GAUSS_W, GAUSS_XI, element_geometry, shape_matrix
+from .bodies import rotation
 from .builder import Builder, compiles
 
 
@@ -25,3 +28,77 @@ def compile_torque(t: Torque, b: Builder) -> None:
         k = t.body.nearest_node(t.at)[0] if t.at is not None else drive_node(t.body)
         dofs[:] = info.node_ref[k, 2], info.node_dofs[k, 2]
     b.table("torques").add(t.name, base=t.magnitude, profile=t.profile, dofs=dofs)
+
+
+def _shape_derivative(xi, L, c, s):
+    """``dS_e/dxi`` (2, 6) of the element at ``xi`` (derivative of
+    :func:`~morphlab.compile.beam.shape_matrix`; complex-safe)."""
+    dax = (-1.0, 1.0)
+    dtr = (-6.0 * xi + 6.0 * xi * xi, 6.0 * xi - 6.0 * xi * xi)
+    drot = ((1.0 - 4.0 * xi + 3.0 * xi * xi) * L, (3.0 * xi * xi - 2.0 * xi) * L)
+    dS = np.zeros((2, 6), dtype=np.result_type(L, c, s))
+    for node in range(2):
+        na, hv, hr, j = dax[node], dtr[node], drot[node], 3 * node
+        dS[0, j], dS[0, j + 1], dS[0, j + 2] = c * na * c + s * hv * s, c * na * s - s * hv * c, -s * hr
+        dS[1, j], dS[1, j + 1], dS[1, j + 2] = s * na * c - c * hv * s, s * na * s + c * hv * c, c * hr
+    return dS
+
+
+def pressure_integrals(X1, X2) -> dict:
+    """The integrals ``c, D, e, f, H, g, G`` (each with a leading node axis of 2) of a pressure
+    on the element ``X1 -> X2`` (body frame), :mod:`morphlab.kernels.pressure`. The 4-point
+    Gauss rule integrates them exactly (``N_a S^T S'``: degree 6). In ``xi``: ``ds = L dxi``,
+    ``u0' = (X2 - X1) / L``, ``S' = (dS/dxi) / L``; complex-safe."""
+    X1, X2 = np.asarray(X1), np.asarray(X2)
+    L, c, s = element_geometry(X1, X2)
+    dX = X2 - X1
+    It = np.array([[0.0, -1.0], [1.0, 0.0]])
+    dt = np.result_type(X1, X2, float)
+    out = {"c": np.zeros((2, 2), dt), "D": np.zeros((2, 2, 6), dt), "e": np.zeros(2, dt),
+           "f": np.zeros((2, 6), dt), "H": np.zeros((2, 6, 6), dt), "g": np.zeros((2, 6), dt),
+           "G": np.zeros((2, 6, 6), dt)}
+    S = np.zeros((2, 6), dtype=dt)
+    for xi, w in zip(GAUSS_XI, GAUSS_W):
+        shape_matrix(xi, L, c, s, S)
+        dS = _shape_derivative(xi, L, c, s)
+        u0 = X1 + xi * dX
+        for a, Na in enumerate((1.0 - xi, xi)):
+            wa = w * Na
+            out["c"][a] += wa * dX
+            out["D"][a] += wa * dS
+            out["e"][a] += wa * (u0 @ dX)
+            out["f"][a] += wa * (S.T @ dX + dS.T @ u0)
+            out["H"][a] += wa * (S.T @ dS)
+            out["g"][a] += wa * (S.T @ (It @ dX))
+            out["G"][a] += wa * (S.T @ It @ dS)
+    return out
+
+
+@compiles(Pressure)
+def compile_pressure(pr: Pressure, b: Builder) -> None:
+    """A pressure: one entry of the ``pressures`` table per loaded element, with the
+    element's integrals in the frame that holds it and ``P = p width`` at its two nodes."""
+    info = b.bodies[pr.beam.name]
+    E, B = b.table("elements"), b.table("bodies")
+    elem_body = np.concatenate(E.columns["body"])
+    elem_dofs = np.concatenate(E.columns["dofs"])
+    body_ref = np.concatenate(B.columns["ref"])
+    nodes = np.asarray(pr.beam.nodes)
+    for k in pr.elements:
+        e = info.elements.start + int(k)
+        ref = body_ref[elem_body[e]]
+        origin = np.array([b.q0[ref[0]], b.q0[ref[1]]])
+        At = rotation(b.q0[ref[2]]).T
+        integrals = pressure_integrals(At @ (nodes[k] - origin), At @ (nodes[k + 1] - origin))
+        P = np.array([pr.p[k], pr.p[k + 1]]) * pr.width[k]
+        b.table("pressures").add(pr.name, base=P, profile=pr.profile, ref=ref,
+                                 dofs=elem_dofs[e],
+                                 **{n: v.astype(b.dtype) for n, v in integrals.items()})
+
+
+@compiles(FollowerForce)
+def compile_follower(f: FollowerForce, b: Builder) -> None:
+    """A force that turns with the material point: its point, DOFs and initial rotation."""
+    dofs, u0, angle0 = b.point(f.body, f.at)
+    b.table("followers").add(f.name, base=np.asarray(f.force), profile=f.profile, u0=u0,
+                             psi0=angle0, dofs=dofs)

@@ -246,7 +246,7 @@ def _profile_table(prof, times: np.ndarray, owner: str) -> tuple:
 
 
 _OWNER = {"rows": "drive", "slides": "constraint", "loads": "force", "torques": "torque",
-          "lines": "line load", "pressures": "pressure"}
+          "lines": "line load", "pressures": "pressure", "followers": "follower force"}
 
 
 def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None

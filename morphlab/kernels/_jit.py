@@ -5,7 +5,8 @@
 * :func:`inner`: a kernel only other kernels call. Compiled and cached the same way, but
   without the wrapper that converts Python arguments: for a function that takes a system's
   arrays (tens of arrays in nested tuples), generating that wrapper is most of its compile
-  time, and an inner kernel never needs it. Called from Python it raises ``TypeError``.
+  time, and an inner kernel never needs it. Called from Python it raises ``TypeError`` (with
+``NUMBA_DISABLE_JIT=1``, for debugging, every kernel is the plain Python function).
 
 ``nogil=True`` (:func:`kernel` with ``nogil``) releases the GIL while a long kernel runs.
 """
@@ -32,5 +33,6 @@ def kernel(fn=None, *, nogil: bool = False):
 def inner(fn):
     """Compile ``fn`` as a kernel only kernels call (module docstring)."""
     d = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)(fn)
-    d.__class__ = InnerDispatcher
+    if isinstance(d, CPUDispatcher):  # not with NUMBA_DISABLE_JIT, which returns ``fn``
+        d.__class__ = InnerDispatcher
     return d

@@ -116,7 +116,7 @@ def keep(K, F, data, x, k):
             K.Ux[j, p] = F.Ux[p]
         for p in range(F.Ud.shape[0]):
             K.Ud[j, p] = F.Ud[p]
-    for p in range(data.shape[1]):
+    for p in range(K.D.shape[2]):  # the reuse variant's blocks (none in the exact one)
         K.D[j, 0, p] = data[1, p]
         K.D[j, 1, p] = data[2, p]
 

@@ -15,13 +15,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import ffrf, forces, joints, loads, slides
+# the kernel modules: importing one registers its kinds (morphlab.kernels.schema.KINDS), in
+# this order; a new kind of item is one module here and its two calls below
+from . import ffrf, forces, joints, loads, pressure, slides
 from ._jit import inner, kernel
-from .system import POS
+from .schema import KINDS
 from .types import Level, Weights
 
+#: Position of each kind in the order of registration (that of ``SystemArrays``).
+POS = {name: j for j, name in enumerate(KINDS)}
 BODIES, ELEMENTS, ROWS, SLIDES = POS["bodies"], POS["elements"], POS["rows"], POS["slides"]
 TORQUES, LOADS, LINES, SPRINGS = POS["torques"], POS["loads"], POS["lines"], POS["springs"]
+PRESSURES, FOLLOWERS = POS["pressures"], POS["followers"]
 
 
 class Step(NamedTuple):
@@ -61,6 +66,10 @@ def residual(M, x, w, T, t, k, P, n_dof, R, W):
     loads.load_residual(M.loads, x.q, w.wf, T.loads, t, k, i[o[LOADS]:o[LOADS + 1]], R)
     loads.line_residual(M.lines, x.q, w.wf, T.lines, t, k, i[o[LINES]:o[LINES + 1]], R)
     forces.residual(M.springs, x, w.wf, i[o[SPRINGS]:o[SPRINGS + 1]], R)
+    pressure.pressure_residual(M.pressures, x.q, w.wf, T.pressures, t, k,
+                               i[o[PRESSURES]:o[PRESSURES + 1]], R)
+    pressure.follower_residual(M.followers, x.q, w.wf, T.followers, t, k,
+                               i[o[FOLLOWERS]:o[FOLLOWERS + 1]], R)
 
 
 @kernel
@@ -78,6 +87,8 @@ def matrix(M, x, w, T, t, k, C, out, W):
     loads.load_matrix(M.loads, x.q, w.wf, T.loads, t, k, C, out)
     loads.line_matrix(M.lines, x.q, w.wf, T.lines, t, k, C, out)
     forces.matrix(M.springs, x, w.wf, C, out)
+    pressure.pressure_matrix(M.pressures, x.q, w.wf, T.pressures, t, k, C, out)
+    pressure.follower_matrix(M.followers, x.q, w.wf, T.followers, t, k, C, out)
 
 
 @inner

@@ -97,6 +97,13 @@ class Kind:
             if f.role not in ROLES or f.dtype not in ("float", "int"):
                 raise ValueError(f"kind {name!r}, field {f.name!r}: role {f.role!r} or dtype "
                                  f"{f.dtype!r} unknown")
+        if any(f.linear and f.role == DESIGN for f in self.fields) and any(
+                f.linear and f.role == TIME for f in self.fields):
+            # the linear path of the pseudo-loads holds the linear design fields at zero
+            # while it evaluates a change of the time values: a residual linear in each
+            # group but not in both together (bilinear) must declare one group only
+            raise ValueError(f"kind {name!r}: linear design and linear time fields; the "
+                             "residual must be linear in all its linear fields together")
         self.fields_by_name = {f.name: f for f in self.fields}
         title = "".join(p.capitalize() for p in name.split("_"))
         # the named tuples live in the kind's kernel module (``module``, which binds them to

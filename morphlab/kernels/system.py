@@ -19,7 +19,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import ffrf, forces, joints, loads, slides  # noqa: F401 - they register
 from ._jit import inner
 from .schema import KINDS, TIME
 
@@ -30,8 +29,6 @@ TIMED_NAMES = tuple(k for k, kind in KINDS.items() if kind.times is not None)
 
 SystemArrays = namedtuple("SystemArrays", ("gravity",) + KIND_NAMES)
 Times = namedtuple("Times", TIMED_NAMES)
-#: Position of each kind in :data:`KIND_NAMES` (the ``kind`` of :func:`items`).
-POS = {name: j for j, name in enumerate(KIND_NAMES)}
 
 
 class Parts(NamedTuple):

@@ -8,6 +8,7 @@ from .forces import LineLoad, RotationalSpring, Spring
 from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
 from .model import Model
+from .pressure import FollowerForce, Pressure
 from .profiles import (
     Constant,
     Custom,
@@ -25,8 +26,8 @@ from .profiles import (
 )
 
 __all__ = [
-    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Joint",
-    "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp",
+    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "FollowerForce", "Force", "Ground", "Integral", "Joint",
+    "LineLoad", "Linear", "Model", "Polynomial", "Pressure", "Prismatic", "Product", "Profile", "Ramp",
     "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine", "SmoothStep", "Spring", "Sum",
     "Torque", "Weld", "as_profile",
 ]

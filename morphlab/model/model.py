@@ -30,6 +30,7 @@ from .forces import (
 from .frames import drive_node
 from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
+from .pressure import FollowerForce, Pressure, make_pressure
 from .values import _check_name, _numeric, _point, _profile, _real, _show, _upcast
 
 
@@ -62,6 +63,7 @@ class Model:
         self.torques: list[Torque] = []
         self.springs: list[Spring | RotationalSpring] = []
         self.line_loads: list[LineLoad] = []
+        self.pressures: list[Pressure] = []
 
     # ---- bodies
     def _register(self, body: Body) -> Body:
@@ -276,15 +278,23 @@ class Model:
         return j
 
     # ---- loads
-    def add_force(self, body, *, at, force, profile=None, name=None) -> Force:
-        """Apply ``force * profile(t)`` (global direction) at the point ``at`` of ``body``."""
+    def add_force(self, body, *, at, force, profile=None, name=None,
+                  follower: bool = False) -> Force:
+        """Apply ``force * profile(t)`` [N] at the point ``at`` of ``body``: of fixed global
+        direction, or with ``follower`` a force that turns with the material point's rotation
+        (:class:`~morphlab.model.pressure.FollowerForce`; ``force`` then gives its components
+        in the initial configuration)."""
         name = self._load_name(name, "force", len(self.forces))
         body = self._own(body, f"force {name!r}")
         if body is self.ground:
             raise ModelError(f"force {name!r}: cannot load the ground")
         at = self._check_point_on(body, at, f"force {name!r}")
         f = _point(force, "force", f"force {name!r}")
-        ld = Force(body, at, f, _profile(profile, f"force {name!r}"), name)
+        if not isinstance(follower, (bool, np.bool_)):
+            raise ModelError(f"force {name!r}: follower must be True or False, got "
+                             f"{_show(follower)}")
+        cls = FollowerForce if follower else Force
+        ld = cls(body, at, f, _profile(profile, f"force {name!r}"), name)
         self.forces.append(ld)
         return ld
 
@@ -386,7 +396,32 @@ class Model:
         self.line_loads.append(ld)
         return ld
 
+    def add_pressure(self, name, beam, p, *, profile=None, elements=None,
+                     width=None) -> Pressure:
+        """Add a follower pressure on a beam: normal to the deformed centre line
+        (:mod:`morphlab.kernels.pressure`, ``docs/theory.md`` §4.7).
+
+        Parameters
+        ----------
+        p : float, (n_nodes,) or callable
+            Pressure [MPa = N/mm²]: one value, one per node of the beam (linear along each
+            element), or ``p(xy)`` of the undeformed nodes (n_nodes, 2) [mm] returning one
+            per node. Positive ``p`` pushes along the left normal of the direction from the
+            first node to the last (on a ring numbered counter-clockwise: inwards).
+        profile : Profile, number or callable, optional
+            Time factor (default 1).
+        elements : sequence of int, optional
+            Element indices of the beam the pressure acts on; default all.
+        width : float or (n_elements,), optional
+            Out-of-plane width [mm] the pressure acts on; default the beam's section width.
+        """
+        name = self._load_name(name, "pressure", len(self.pressures))
+        pr = make_pressure(self, name, beam, p, profile, elements, width)
+        self.pressures.append(pr)
+        return pr
+
     def __repr__(self) -> str:
         return (f"Model({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
                 f"{len(self.forces)} forces, {len(self.torques)} torques, "
-                f"{len(self.springs)} springs, {len(self.line_loads)} line loads)")
+                f"{len(self.springs)} springs, {len(self.line_loads)} line loads, "
+                f"{len(self.pressures)} pressures)")

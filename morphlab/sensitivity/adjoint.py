@@ -32,7 +32,7 @@ from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
 from .designs import CS_STEP
-from .direct import _fits, keep_record
+from .direct import _fits, converged_blocks, keep_record
 from .histories import to_store
 
 
@@ -59,7 +59,11 @@ class AdjointHook(StepHook):
         self.system, self.n_steps, self.memory = system, n_steps, memory
         self.rows = 3 if reuse else 1
         self.python: dict[int, _PythonStep] = {}
-        self.record = None  # the Keep of the compiled steps (whole run) or None
+        # the Keeps of the compiled steps, each from its first step to the end of the run; a
+        # later one (the sparse factors changed size with a new row order) takes over from
+        # its first step
+        self.records: list = []
+        self.patterns: list = []  # the factor arrays of each record's row order
         self.segment = None  # steps per segment in checkpoint mode
         self.checkpoints: dict = {}  # step -> State at its start (checkpoint mode)
 
@@ -69,9 +73,14 @@ class AdjointHook(StepHook):
     def python_step(self, k: int, out) -> None:
         data = self.stepper.newton.data
         old = _level(out.state) if k == 0 else _level(self.hist.state(k - 1))
-        self.python[k] = _PythonStep(out.factor, data[1].copy() if self.rows == 3 else None,
-                                     data[2].copy() if self.rows == 3 else None,
-                                     _level(out.state), old)
+        Dq = Dv = None
+        if self.rows == 3 and k == 0:
+            stp = self.stepper
+            sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=True)
+            Dq, Dv = converged_blocks(stp, sc0, _level(out.state))
+        elif self.rows == 3:
+            Dq, Dv = data[1].copy(), data[2].copy()
+        self.python[k] = _PythonStep(out.factor, Dq, Dv, _level(out.state), old)
 
     def _per_step(self, F) -> int:
         s = self.system
@@ -89,21 +98,36 @@ class AdjointHook(StepHook):
 
     def kernels(self, k0: int, k1: int):
         F = self.stepper.newton.factorization.loop_arrays()
-        if self.record is None and self.segment is None:
+        if self.segment is not None:  # checkpoint mode: the sweep recomputes the steps
+            return None
+        if not self.records or not _fits(self.records[-1], F):
             per = self._per_step(F)
-            if per * (self.n_steps - k0 + 1) <= self.memory:
-                self.record = keep_record(self.system, F, self.n_steps - k0 + 1, k0)
-            else:
+            used = sum(self._per_step_of(R) * (R.Q.shape[0] - 1) for R in self.records)
+            if used + per * (self.n_steps - k0 + 1) > self.memory:
                 self.segment = max(1, int(self.memory // (2 * per)))
                 self.checkpoints[k0] = self.hist.state(k0 - 1)
                 return None
-        if self.record is None or not _fits(self.record, F):
-            return None
+            self.records.append(keep_record(self.system, F, self.n_steps - k0 + 1, k0,
+                                            self.rows == 3))
+            self.patterns.append(F)
+        R = self.records[-1]
         st = self.hist.state(k0 - 1)
-        j = k0 - self.record.k0[0]
-        R = self.record
+        j = k0 - R.k0[0]
         R.Q[j], R.V[j], R.A[j], R.L[j] = st.q, st.v, st.a, st.lam
         return R
+
+    def _per_step_of(self, R) -> int:
+        """Bytes per step of the record ``R``."""
+        return sum(x[0].nbytes for x in (R.LU, R.piv, R.Lx, R.Ux, R.Ud, R.D, R.Q, R.V, R.A,
+                                         R.L))
+
+    def record_of(self, k: int) -> tuple:
+        """The record that holds step ``k`` (the latest one starting at or before it) and the
+        factor arrays of its row order, or ``(None, None)``."""
+        for R, F in zip(reversed(self.records), reversed(self.patterns)):
+            if R.k0[0] <= k:
+                return R, F
+        return None, None
 
 
 class _Replay:
@@ -127,7 +151,7 @@ class _Replay:
         j = (c - 1) % 2
         H.Q[j], H.V[j], H.A[j], H.L[j], H.G[j] = st.q, st.v, st.a, st.lam, st.g
         F = nw.factorization.loop_arrays()
-        K = keep_record(self.hook.system, F, k1 - c, c)
+        K = keep_record(self.hook.system, F, k1 - c, c, self.hook.rows == 3)
         K.Q[0], K.V[0], K.A[0], K.L[0] = st.q, st.v, st.a, st.lam
         k = c
         while k < k1:
@@ -198,7 +222,6 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     stp = hook.stepper
     sc = stp.scheme_of()
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
-    F = stp.newton.factorization.loop_arrays()
     N = settings.n_steps
     starts = sorted(hook.checkpoints)
     replay = _Replay(hook, settings) if hook.segment is not None else None
@@ -212,10 +235,12 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         lo = k
         while lo - 1 >= 0 and lo - 1 not in hook.python:
             lo -= 1
-        if hook.record is not None:
-            K = hook.record
+        K, F = hook.record_of(k)
+        first_checkpoint = min(starts) if starts else N + 1
+        if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
         else:
+            F = stp.newton.factorization.loop_arrays()
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
             K = replay.segment(c, k + 1)
@@ -273,11 +298,17 @@ def _touched(sys0: System, ps) -> tuple:
     w = Weights(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     T = time_table(sys0, np.zeros(1))
 
+    def random(x):  # complex tables (the perturbed path's) with a random imaginary part too
+        r = rng.standard_normal(x.shape) + 1.0
+        if np.iscomplexobj(x):
+            r = r + 1j * (rng.standard_normal(x.shape) + 1.0)
+        return r.astype(x.dtype)
+
     def noise(times):
         if times is None:
             return None
-        return type(times)(*(None if t is None else type(t)(*(
-            (rng.standard_normal(x.shape) + 1.0).astype(x.dtype) for x in t)) for t in times))
+        return type(times)(*(None if t is None else type(t)(*(random(x) for x in t))
+                             for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
     mask = np.zeros(sys0.count("flex"), dtype=np.bool_)

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..compile import System
 from ..kernels.adjoint import Keep
+from ..kernels.assemble import matrix
 from ..kernels.direct import Direct, chunk, prepare, refinement_residual, store
 from ..kernels.newton import Csc
 from ..kernels.pseudo import Pseudo
@@ -36,10 +37,10 @@ from ..solve.timeloop import StepHook, integrate
 from .histories import HISTORIES, PerturbedResult
 
 
-def keep_record(system: System, factor_arrays, K: int, k0: int) -> Keep:
+def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool) -> Keep:
     """An empty :class:`~morphlab.kernels.adjoint.Keep` of ``K`` steps from ``k0``, shaped for
     the factors of ``factor_arrays`` (:meth:`~morphlab.solve.linalg.StepFactorization.
-    loop_arrays`)."""
+    loop_arrays`); with ``blocks`` room for each step's ``Dq, Dv`` (the reuse variant)."""
     F = factor_arrays
     dt = system.dtype
     dense = F.order is None
@@ -48,7 +49,7 @@ def keep_record(system: System, factor_arrays, K: int, k0: int) -> Keep:
                 np.zeros((K, 0 if dense else F.Lx.size), dt),
                 np.zeros((K, 0 if dense else F.Ux.size), dt),
                 np.zeros((K, 0 if dense else F.Ud.size), dt),
-                np.zeros((K, 2, system.nnz), dt), np.zeros((K + 1, system.n_dof), dt),
+                np.zeros((K, 2, system.nnz if blocks else 0), dt), np.zeros((K + 1, system.n_dof), dt),
                 np.zeros((K + 1, system.n_dof), dt), np.zeros((K + 1, system.n_dof), dt),
                 np.zeros((K + 1, system.n_con), dt), np.array([k0], dtype=np.int64))
 
@@ -105,7 +106,10 @@ class DirectHook(StepHook):
         new = _level(out.state)
         old = new if k == 0 else _level(self.hist.state(k - 1))
         data = stp.newton.data
-        Dq, Dv = (data[1], data[2]) if self.reuse else (data[0], data[0])
+        if k == 0 and self.reuse:  # the initial solve's fill was at its starting guess
+            Dq, Dv = converged_blocks(stp, sc, new)
+        else:
+            Dq, Dv = (data[1], data[2]) if self.reuse else (data[0], data[0])
         prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k)
         lu = out.factor
         x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
@@ -124,7 +128,7 @@ class DirectHook(StepHook):
         F = self.stepper.newton.factorization.loop_arrays()
         K = k1 - k0
         if self.record is None or self.record.Q.shape[0] < K + 1 or not _fits(self.record, F):
-            self.record = keep_record(self.system, F, K, k0)
+            self.record = keep_record(self.system, F, K, k0, self.reuse)
         return start_record(self.record, self.hist, k0)
 
     def after_chunk(self, k0: int, k1: int) -> None:
@@ -135,6 +139,17 @@ class DirectHook(StepHook):
         chunk(self.d, stp.M, stp.T, self.sc, stp.newton.factorization.loop_arrays(),
               self.record, k0, k1)
         self.seconds += _time.perf_counter() - t0
+
+
+def converged_blocks(stepper, sc, new) -> tuple:
+    """``Dq``, ``Dv`` (nnz,) of the initial solve at its solution ``new``. The reuse variant
+    takes them from a step's last Newton fill, which differs from the converged state by the
+    last correction; the initial accelerations are solved in one linear step from zero, so
+    that fill is at ``a = 0, lam = 0``, and the initial step forms its own (one fill)."""
+    data = np.zeros((3, stepper.system.nnz), dtype=stepper.system.dtype)
+    matrix(stepper.M, new, sc.w_new, stepper.T, np.int64(0), np.int64(0), np.eye(3), data,
+           stepper.newton.W)
+    return data[1], data[2]
 
 
 def _fits(K: Keep, F) -> bool:
