@@ -1,10 +1,13 @@
 """Stage 1, describe: a :class:`Model` of bodies, joints, loads and drives, and time profiles.
 
-A model is a description only; :mod:`morphlab.compile` turns it into arrays.
+A model is a description only; :mod:`morphlab.compile` turns it into arrays. Every kind of item
+is a class derived from :class:`Item` that validates itself (:meth:`Item.check`) when
+:meth:`Model.add` adds it.
 """
 
 from .bodies import Beam, Body, Ground, RigidBody
 from .forces import LineLoad, RotationalSpring, Spring
+from .items import Item
 from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
 from .model import Model
@@ -25,8 +28,8 @@ from .profiles import (
 )
 
 __all__ = [
-    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Joint",
-    "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp",
+    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Item",
+    "Joint", "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp",
     "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine", "SmoothStep", "Spring", "Sum",
     "Torque", "Weld", "as_profile",
 ]
