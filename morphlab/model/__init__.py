@@ -8,7 +8,7 @@ is a class derived from :class:`Item` that validates itself (:meth:`Item.check`)
 from .bodies import Beam, Body, Ground, RigidBody
 from .forces import LineLoad, RotationalSpring, Spring
 from .items import Item
-from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
+from .joints import Drive, Fix, Gear, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
 from .model import Model
 from .profiles import (
@@ -28,8 +28,8 @@ from .profiles import (
 )
 
 __all__ = [
-    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Ground", "Integral", "Item",
-    "Joint", "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product", "Profile", "Ramp",
-    "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine", "SmoothStep", "Spring", "Sum",
-    "Torque", "Weld", "as_profile",
+    "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Gear", "Ground", "Integral",
+    "Item", "Joint", "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product",
+    "Profile", "Ramp", "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine",
+    "SmoothStep", "Spring", "Sum", "Torque", "Weld", "as_profile",
 ]

@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ModelError
-from .bodies import Beam, Body, body_of, material_point
+from .bodies import Beam, Body, Ground, body_of, material_point
 from .frames import drive_node
 from .items import Item
 from .profiles import Profile
-from .values import _point, _profile, _real, _show
+from .values import _numeric, _point, _profile, _real, _show, _upcast
 
 if TYPE_CHECKING:
     from .model import Model
@@ -160,3 +160,53 @@ class Drive(Joint):
         elif isinstance(body, Beam):
             self.at = body.nodes[drive_node(body)]
         self.profile = prof
+
+
+@dataclass(eq=False)
+class Gear(Joint):
+    """Gear pair or coupler between two rotations (1 angle row, ``docs/theory.md`` §4.2):
+
+    ``(theta_a + phi_a) - ratio (theta_b + phi_b) = c``,
+
+    ``theta`` the angle of a body (of a beam's floating frame), ``phi`` the elastic rotation of
+    the beam node at ``at_a`` / ``at_b`` (a beam side needs its node; on a rigid body every
+    point turns alike, so the point is optional there), ``c`` the value in the initial
+    configuration. ``b`` turns by ``1 / ratio`` of ``a``'s turn: ``ratio`` = teeth of ``b`` /
+    teeth of ``a``, negative for an external pair (the senses are opposite), positive for an
+    internal pair or a belt. Either side may be the ground, which then holds the other side's
+    rotation. Its reaction (:meth:`Result.reaction`) is the moment on ``b`` (on ``a`` when
+    ``b`` is the ground); ``a`` receives ``-1 / ratio`` of it.
+    """
+
+    a: Body | str
+    b: Body | str
+    ratio: object
+    at_a: np.ndarray | None = None
+    at_b: np.ndarray | None = None
+
+    label = "gear"
+    prefix = "gear"
+
+    @property
+    def at(self) -> np.ndarray | None:
+        """The point of the side whose reaction :meth:`Result.reaction` gives (``at_b``, or
+        ``at_a`` when ``b`` is the ground); None for a rigid body: its centre of mass."""
+        return self.at_a if isinstance(self.b, Ground) else self.at_b
+
+    def check(self, model: Model) -> None:
+        owner = self.owner
+        self.a, self.b = body_of(model, self.a, owner), body_of(model, self.b, owner)
+        if self.a is self.b:
+            raise ModelError(f"{owner}: connects body {self.a.name!r} to itself")
+        r = _numeric(self.ratio, "ratio", owner, expect="a finite nonzero number")
+        if not _real(r) != 0:
+            raise ModelError(f"{owner}: ratio must be a finite nonzero number (the turn of a "
+                             f"per turn of b), got {_show(self.ratio)}")
+        self.ratio = _upcast(self.ratio)
+        for side, key in (("a", "at_a"), ("b", "at_b")):
+            body, at = getattr(self, side), getattr(self, key)
+            if isinstance(body, Beam) and at is None:
+                raise ModelError(f"{owner}: {key} (a node of beam {body.name!r}) is needed: the "
+                                 "gear acts on that node's rotation")
+            if at is not None:
+                setattr(self, key, material_point(body, at, owner, key))

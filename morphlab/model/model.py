@@ -22,7 +22,7 @@ from ..errors import ModelError
 from .bodies import Beam, Body, Ground, RigidBody
 from .forces import LineLoad, RotationalSpring, Spring
 from .items import COLLECTIONS, NAMESPACES, Item
-from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
+from .joints import Drive, Fix, Gear, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
 from .values import _check_name, _point, _show
 
@@ -190,6 +190,29 @@ class Model:
             integral; ``angle(0) != 0``.
         """
         return self.add(Drive(name, body, angle, at, speed))
+
+    def add_gear(self, a, b, *, ratio, at_a=None, at_b=None, name=None) -> Gear:
+        """Couple the rotations of ``a`` and ``b``: ``(theta_a + phi_a) - ratio (theta_b +
+        phi_b)`` stays at its initial value (a gear pair, a belt, a coupler; :class:`Gear`).
+
+        Parameters
+        ----------
+        a, b : Body or str
+            The bodies (or their names; either may be the ground).
+        ratio : float
+            Turn of ``a`` per turn of ``b`` (teeth of ``b`` / teeth of ``a``), nonzero;
+            negative when the senses are opposite (an external gear pair).
+        at_a, at_b : (2,), optional
+            The beam node whose rotation counts, needed where a side is a beam (global
+            coordinates of the initial configuration).
+
+        Raises
+        ------
+        ModelError
+            A ratio that is zero or not a finite number, unknown bodies or bodies of another
+            model, a body coupled to itself, a missing or off-node point on a beam.
+        """
+        return self.add(Gear(name, a, b, ratio, at_a, at_b))
 
     # ---- loads (morphlab.model.loads)
     def add_force(self, body, *, at, force, profile=None, name=None) -> Force:
