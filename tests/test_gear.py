@@ -190,6 +190,23 @@ def test_gear_on_beam_nodes_runs_and_its_newton_matrix_is_exact():
     newton_columns_by_complex_step(model, seed=11)
 
 
+def test_gear_reaction_point_and_drawing():
+    """A gear's ``at`` is the point of the side its reaction is read on: ``b``'s node, or the
+    centre of mass of a rigid ``b`` given without a point; the model drawing marks each gear
+    there."""
+    import matplotlib.pyplot as plt
+
+    model, nodes = geared_arm()
+    mesh, belt = model.joints[-2:]
+    np.testing.assert_array_equal(mesh.at, nodes[0])
+    np.testing.assert_array_equal(belt.at, [40.0, -30.0])
+    fig = ml.plots.model(model)
+    for j in (mesh, belt):
+        (mark,) = [ln for ln in fig.axes[0].lines if ln.get_gid() == f"joint:{j.name}"]
+        np.testing.assert_array_equal(mark.get_xydata()[0], np.real(j.at))
+    plt.close(fig)
+
+
 P_GEAR = {"r": -3.0, "T": 40.0}
 # Newton to 1e-13: the whole-run complex step differentiates the iterates as they are, so at
 # the default 1e-10 it differs from the converged solution's derivative by ~1e-9 (measured

@@ -9,7 +9,7 @@ from .bodies import Beam, Body, Ground, RigidBody
 from .forces import LineLoad, RotationalSpring, Spring
 from .items import Item
 from .joints import Drive, Fix, Gear, Joint, Prismatic, Revolute, Weld
-from .loads import Force, Torque
+from .loads import Force, Load, Torque
 from .model import Model
 from .profiles import (
     Constant,
@@ -29,7 +29,7 @@ from .profiles import (
 
 __all__ = [
     "Beam", "Body", "Constant", "Custom", "Drive", "Fix", "Force", "Gear", "Ground", "Integral",
-    "Item", "Joint", "LineLoad", "Linear", "Model", "Polynomial", "Prismatic", "Product",
+    "Item", "Joint", "LineLoad", "Linear", "Load", "Model", "Polynomial", "Prismatic", "Product",
     "Profile", "Ramp", "Revolute", "RigidBody", "RotationalSpring", "Scaled", "Sine",
     "SmoothStep", "Spring", "Sum", "Torque", "Weld", "as_profile",
 ]

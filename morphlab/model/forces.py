@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import ModelError
 from .bodies import Beam, Body, Ground, body_of, material_point
 from .joints import Revolute
-from .loads import _Load
+from .loads import Load
 from .profiles import Constant, Profile
 from .values import _numeric, _point, _profile, _real, _show, _upcast
 
@@ -30,7 +30,7 @@ def _nonnegative(value, what, owner):
     return _upcast(value)
 
 
-class _SpringDamper(_Load):
+class _SpringDamper(Load):
     """Stiffness and damping (>= 0) and a preload of any sign."""
 
     collection = "springs"
@@ -154,7 +154,7 @@ class RotationalSpring(_SpringDamper):
 
 
 @dataclass(eq=False)
-class LineLoad(_Load):
+class LineLoad(Load):
     """A distributed load ``q * profile(t)`` [force per length of the undeformed beam] of fixed
     global direction on the elements ``elements`` of ``beam`` (element indices, 0 to
     ``n_elements - 1``; None: all; :meth:`check` makes them a sorted int64 array)."""

@@ -188,10 +188,12 @@ class Gear(Joint):
     prefix = "gear"
 
     @property
-    def at(self) -> np.ndarray | None:
-        """The point of the side whose reaction :meth:`Result.reaction` gives (``at_b``, or
-        ``at_a`` when ``b`` is the ground); None for a rigid body: its centre of mass."""
-        return self.at_a if isinstance(self.b, Ground) else self.at_b
+    def at(self) -> np.ndarray:
+        """The point of the side whose reaction :meth:`Result.reaction` gives (``b``, or ``a``
+        when ``b`` is the ground): its ``at_b`` / ``at_a``, else its centre of mass (a rigid
+        body turns alike at every point)."""
+        body, at = (self.a, self.at_a) if isinstance(self.b, Ground) else (self.b, self.at_b)
+        return at if at is not None else body.position
 
     def check(self, model: Model) -> None:
         owner = self.owner

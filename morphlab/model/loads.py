@@ -19,13 +19,15 @@ if TYPE_CHECKING:
     from .model import Model
 
 
-class _Load(Item):
-    """Loads and force elements share one set of names."""
+class Load(Item):
+    """Base of loads and force elements: they share one set of names (the ``"loads"``
+    namespace). A new kind of load derives from it and sets ``collection``, ``label`` and
+    ``prefix`` and its :meth:`check`."""
 
     namespace = "loads"
 
     def _loaded_body(self, model: Model, body) -> Body:
-        """``body`` as a body of ``model`` other than the ground."""
+        """``body`` (or its name) as a body of ``model`` other than the ground."""
         body = body_of(model, body, self.owner)
         if body is model.ground:
             raise ModelError(f"{self.owner}: cannot load the ground")
@@ -33,7 +35,7 @@ class _Load(Item):
 
 
 @dataclass(eq=False)
-class Force(_Load):
+class Force(Load):
     """A force of fixed global direction at a material point: ``F(t) = force * profile(t)``
     [N] (``at`` a node when ``body`` is a beam; ``profile`` a :class:`Profile`, a number or
     a callable ``f(t)``)."""
@@ -56,7 +58,7 @@ class Force(_Load):
 
 
 @dataclass(eq=False)
-class Torque(_Load):
+class Torque(Load):
     """A torque ``T(t) = magnitude * profile(t)`` [N·mm] on a body (and on the nodal rotation
     of the beam node at ``at``, when given)."""
 
