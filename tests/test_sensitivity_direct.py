@@ -415,7 +415,8 @@ def test_linear_variables_take_real_products(monkeypatch, scheme):
             runs[linear] = ml.sensitivities(build, p0, resp, method=method, scheme=scheme,
                                             **RUN)
             taken = {v for v, lin in zip(p0, linear_vars) if lin}
-            assert taken == ({"E", "t", "rho", "m_crank", "M", "F"} if linear else set()), (method, taken)
+            expected = {"E", "t", "rho", "m_crank", "M", "F"} if linear else set()
+            assert taken == expected, (method, taken)
         for r in runs[True].gradients:
             a, b = runs[True].gradients[r], runs[False].gradients[r]
             scale = max(abs(p0[v] * b[v]) for v in p0)  # logarithmic sensitivities

@@ -1,14 +1,14 @@
 """Compile functions of the joints: each becomes scalar constraint rows
-(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE`` of the ``rows`` table, the
-slide row of the ``slides`` table) between two material points.
+(:data:`~morphlab.kernels.joints.ROW_X`, ``ROW_Y``, ``ROW_ANGLE``, ``ROW_GEAR`` of the ``rows``
+table, the slide row of the ``slides`` table) between two material points.
 Formulation: ``docs/theory.md`` §4."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
-from ..model import Drive, Fix, Ground, Prismatic, Revolute, RigidBody, Weld
+from ..kernels.joints import ROW_ANGLE, ROW_GEAR, ROW_X, ROW_Y
+from ..model import Drive, Fix, Gear, Ground, Prismatic, Revolute, RigidBody, Weld
 from .builder import Builder, compiles
 
 
@@ -45,6 +45,17 @@ def compile_drive(j: Drive, b: Builder) -> None:
     pa = b.point(j.body, at)
     b.add_row("rows", ROW_ANGLE, j, "r", pa, b.point(b.model.ground, at), pa[2],
               profile=j.profile)
+
+
+@compiles(Gear)
+def compile_gear(j: Gear, b: Builder) -> None:
+    """One gear row ``(theta_a + phi_a) - r (theta_b + phi_b) = c``, the ratio ``r`` as the
+    coefficient of side b, ``c`` its value in the initial configuration (the nodal rotations
+    are zero there). A rigid side's point is its centre of mass unless given (every point of
+    it turns alike), which is where the reaction is read."""
+    pa, pb = (b.point(body, at if at is not None else getattr(body, "position", None))
+              for body, at in ((j.a, j.at_a), (j.b, j.at_b)))
+    b.add_row("rows", ROW_GEAR, j, "r", pa, pb, pa[2] - j.ratio * pb[2], coef=j.ratio)
 
 
 def _angle(vec):

@@ -39,8 +39,12 @@ def _shape_derivative(xi, L, c, s):
     dS = np.zeros((2, 6), dtype=np.result_type(L, c, s))
     for node in range(2):
         na, hv, hr, j = dax[node], dtr[node], drot[node], 3 * node
-        dS[0, j], dS[0, j + 1], dS[0, j + 2] = c * na * c + s * hv * s, c * na * s - s * hv * c, -s * hr
-        dS[1, j], dS[1, j + 1], dS[1, j + 2] = s * na * c - c * hv * s, s * na * s + c * hv * c, c * hr
+        dS[0, j] = c * na * c + s * hv * s
+        dS[0, j + 1] = c * na * s - s * hv * c
+        dS[0, j + 2] = -s * hr
+        dS[1, j] = s * na * c - c * hv * s
+        dS[1, j + 1] = s * na * s + c * hv * c
+        dS[1, j + 2] = c * hr
     return dS
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import ModelError
 from .frames import frame_offsets
 from .frames import resolve as resolve_frames
+from .items import Item
 from .values import (
     _check_name,
     _finite_positive,
@@ -27,11 +28,15 @@ if TYPE_CHECKING:
     from .model import Model
 
 
-class Body:
-    """Base of all bodies. ``name`` is unique within a model."""
+class Body(Item):
+    """Base of all bodies. ``name`` is unique within a model. A body validates its parameters
+    when it is constructed; :meth:`Model.add <morphlab.model.Model.add>` checks its name."""
 
+    collection = "bodies"
+    namespace = "bodies"
+    label = "body"
+    prefix = "body"
     name: str
-    _model: Model | None = None
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
@@ -61,6 +66,8 @@ class RigidBody(Body):
         Initial velocity of the centre of mass and angular velocity (must satisfy the
         velocity-level constraints).
     """
+
+    label = "rigid body"
 
     def __init__(self, mass, inertia, position, angle=0.0, *, velocity=(0.0, 0.0),
                  angular_velocity=0.0, name):
@@ -111,6 +118,9 @@ class Beam(Body):
     -----
     Accuracy against cost of the frame choices: ``docs/frames.md``.
     """
+
+    label = "beam"
+    prefix = "beam"
 
     def __init__(self, nodes, *, E, rho, thickness=None, width=None, area=None,
                  second_moment=None, fibre=None, damping=0.0, frames=None, reference=None,
@@ -200,3 +210,74 @@ class Beam(Body):
         d = np.hypot(*(_real(self.nodes) - _real(np.asarray(at))).T)
         k = int(np.argmin(d))
         return k, float(d[k])
+
+
+# ---- a body and a material point of it, as items refer to them
+def body_of(model: Model, body, owner: str) -> Body:
+    """``body`` (a body or its name) as a body of ``model`` (its ground included).
+
+    Raises
+    ------
+    ModelError
+        Naming ``owner``: not a body or a name, an unknown name, a body of another model.
+    """
+    if isinstance(body, str):
+        try:
+            return model.body(body)
+        except ModelError as exc:
+            raise ModelError(f"{owner}: {exc}") from None
+    if not isinstance(body, Body):
+        raise ModelError(f"{owner}: expected a body of this model or its name, got "
+                         f"{_show(body)}")
+    if body is not model.ground and not any(body is b for b in model.bodies):
+        other = body._model.name if body._model is not None else None
+        where = f" (it belongs to model {other!r})" if other is not None else ""
+        raise ModelError(f"{owner}: body {body.name!r} is not part of model "
+                         f"{model.name!r}{where}; add it to this model first")
+    return body
+
+
+def material_point(body: Body, at, owner: str, what: str = "at") -> np.ndarray:
+    """``at`` (2,) as a material point of ``body``: any point of the plane for a rigid body
+    or the ground; on a beam one of its nodes (to 1e-6 of the beam's size, at least 1e-6
+    length units), whose exact coordinates are returned so that every side of a joint sees one
+    point.
+
+    Raises
+    ------
+    ModelError
+        Naming ``owner`` and ``what``: not a finite pair of numbers, or on a beam not at a
+        node (the nearest node and its distance are given).
+    """
+    at = _point(at, what, owner)
+    if isinstance(body, Beam):
+        k, dist = body.nearest_node(at)
+        tol = 1e-6 * max(body.size, 1.0)
+        if dist > tol:
+            node = tuple(float(x) for x in np.round(_real(body.nodes[k]), 6))
+            raise ModelError(
+                f"{owner}: point {tuple(float(x) for x in np.round(_real(at), 6))} is not at "
+                f"a node of beam {body.name!r}; nearest is node {k} at {node}, distance "
+                f"{dist:.6g} (tolerance {tol:.3g}). Joints and loads act at beam nodes: use "
+                "that node's coordinates or add a node there"
+            )
+        return body.nodes[k].copy()
+    return at
+
+
+def element_indices(elements, beam: Beam, owner: str) -> np.ndarray:
+    """``elements`` as distinct element indices of ``beam`` (all for None), sorted int64;
+    a :class:`ModelError` naming ``owner`` otherwise."""
+    n_el = beam.n_elements
+    if elements is None:
+        return np.arange(n_el, dtype=np.int64)
+    try:
+        idx = np.asarray(elements)
+        ok = idx.ndim == 1 and idx.size > 0 and idx.dtype.kind in "iu"
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or np.any(idx < 0) or np.any(idx >= n_el) or np.unique(idx).size != idx.size:
+        raise ModelError(f"{owner}: elements must be distinct element indices of beam "
+                         f"{beam.name!r} (0 to {n_el - 1}), or None for all, got "
+                         f"{_show(elements)}")
+    return np.sort(idx.astype(np.int64))

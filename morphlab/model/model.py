@@ -5,12 +5,15 @@ flat arrays. Points are given in global coordinates of the initial (undeformed) 
 on a beam, joints and loads sit at nodes. Values may be complex (complex-step differentiation
 through a parametric ``build(p)``); validation looks at the real parts.
 
-Every ``add_*`` call validates its arguments before it changes the model, and refuses bad input
-with a :class:`~morphlab.errors.ModelError` that names the body, joint, load or parameter and
-says what would be valid: numbers must be finite numbers of the right shape (no strings,
-``None``, booleans, NaN or Inf), physical parameters positive, names unique non-empty strings,
-points on a beam at one of its nodes. What needs the whole model (redundant or conflicting
-constraints, an inconsistent initial configuration) is checked by ``compile_model``.
+Items enter a model by :meth:`Model.add`, which checks that the item belongs to no other model
+and that its name is free, and lets the item validate itself against the model
+(:meth:`~morphlab.model.items.Item.check`) before anything changes; the ``add_*`` methods build
+the item from their arguments and add it. Bad input is refused with a
+:class:`~morphlab.errors.ModelError` that names the body, joint, load or parameter and says what
+would be valid: numbers must be finite numbers of the right shape (no strings, ``None``,
+booleans, NaN or Inf), physical parameters positive, names unique non-empty strings, points on
+a beam at one of its nodes. What needs the whole model (redundant or conflicting constraints,
+an inconsistent initial configuration) is checked by ``compile_model``.
 """
 
 from __future__ import annotations
@@ -19,19 +22,12 @@ import numpy as np
 
 from ..errors import ModelError
 from .bodies import Beam, Body, Ground, RigidBody
-from .forces import (
-    LineLoad,
-    RotationalSpring,
-    Spring,
-    make_line_load,
-    make_rotational_spring,
-    make_spring,
-)
-from .frames import drive_node
-from .joints import Drive, Fix, Joint, Prismatic, Revolute, Weld
+from .forces import LineLoad, RotationalSpring, Spring
+from .items import COLLECTIONS, NAMESPACES, Item
+from .joints import Drive, Fix, Gear, Joint, Prismatic, Revolute, Weld
 from .loads import Force, Torque
-from .pressure import FollowerForce, Pressure, make_pressure
-from .values import _check_name, _numeric, _point, _profile, _real, _show, _upcast
+from .pressure import FollowerForce, Pressure
+from .values import _check_name, _point, _show
 
 
 class Model:
@@ -44,6 +40,14 @@ class Model:
     name : str
         Used in messages and saved files.
 
+    Attributes
+    ----------
+    ground : Ground
+    bodies, joints, forces, torques, springs, line_loads : list
+        The items of each kind, in the order they were added (one list per
+        :attr:`~morphlab.model.items.Item.collection`; a kind of item defined elsewhere brings
+        its own list).
+
     Examples
     --------
     >>> import morphlab as ml
@@ -52,55 +56,86 @@ class Model:
     >>> j = m.add_revolute(m.ground, link, at=(0.0, 0.0))
     """
 
+    bodies: list[Body]
+    joints: list[Joint]
+    forces: list[Force]
+    torques: list[Torque]
+    springs: list[Spring | RotationalSpring]
+    line_loads: list[LineLoad]
+
     def __init__(self, gravity=(0.0, 0.0), name: str = "model"):
         self.name = _check_name(name, "model")
         self.gravity = _point(gravity, "gravity", f"model {name!r}")
         self.ground = Ground()
         self.ground._model = self
-        self.bodies: list[Body] = []
-        self.joints: list[Joint] = []
-        self.forces: list[Force] = []
-        self.torques: list[Torque] = []
-        self.springs: list[Spring | RotationalSpring] = []
-        self.line_loads: list[LineLoad] = []
-        self.pressures: list[Pressure] = []
+        for collection in COLLECTIONS:
+            setattr(self, collection, [])
+
+    def add(self, item: Item) -> Item:
+        """Add ``item`` (a body, joint, load or force element) and return it.
+
+        A name left ``None`` becomes the kind's prefix followed by the length of its list
+        (``"revolute3"``). The item then validates itself against the model
+        (:meth:`~morphlab.model.items.Item.check`), which may bring its fields to canonical
+        form (bodies given by name become the model's bodies, points on a beam its node).
+
+        Raises
+        ------
+        ModelError
+            Not an item; an item of another model; a name that is not a non-empty string, or
+            taken in the item's namespace (bodies; joints; loads and force elements together);
+            whatever the item's own check refuses. The model is unchanged then.
+        """
+        if not isinstance(item, Item) or not item.collection:
+            raise ModelError(f"model {self.name!r}: add expects a body, joint, load or force "
+                             f"element (a morphlab.model item), got {_show(item)}")
+        if item._model is not None and item._model is not self:
+            raise ModelError(f"{item.owner} already belongs to model {item._model.name!r}; an "
+                             "item can be part of one model only: create a new one")
+        items = getattr(self, item.collection)
+        word, note = NAMESPACES[item.namespace]
+        if item.name is None:
+            item.name = f"{item.prefix}{len(items)}"
+        _check_name(item.name, word)
+        if any(other.name == item.name for other in self._namespace(item.namespace)):
+            raise ModelError(f"model {self.name!r}: a {word} named {item.name!r} already "
+                             f"exists{note}")
+        item.check(self)
+        item._model = self
+        items.append(item)
+        return item
+
+    def _namespace(self, namespace: str):
+        """Every item whose name is in ``namespace`` (the ground among the bodies)."""
+        if namespace == "bodies":
+            yield self.ground
+        for collection, ns in COLLECTIONS.items():
+            if ns == namespace:
+                yield from getattr(self, collection)
 
     # ---- bodies
-    def _register(self, body: Body) -> Body:
-        if not isinstance(body.name, str) or not body.name:
-            raise ModelError(f"bodies need a non-empty string name, got {body.name!r}")
-        if body._model is not None and body._model is not self:
-            raise ModelError(f"body {body.name!r} already belongs to model {body._model.name!r};"
-                             " a body can be part of one model only: create a new one")
-        if body.name == "ground" or any(b.name == body.name for b in self.bodies):
-            raise ModelError(f"model {self.name!r}: a body named {body.name!r} already exists "
-                             "('ground' is reserved); body names must be unique")
-        body._model = self
-        self.bodies.append(body)
-        return body
-
     def add_body(self, body: Body) -> Body:
         """Add a ready-made :class:`RigidBody` or :class:`Beam`."""
         if not isinstance(body, (RigidBody, Beam)):
             raise ModelError(f"add_body expects a RigidBody or Beam, got {type(body).__name__}")
-        return self._register(body)
+        return self.add(body)
 
     def add_beam(self, nodes, *, E, rho, thickness=None, width=None, area=None,
                  second_moment=None, fibre=None, damping=0.0, frames=None, reference=None,
                  reference_node=None, name=None) -> Beam:
         """Add a flexible :class:`Beam` (see there for the parameters and units)."""
-        name = f"beam{len(self.bodies)}" if name is None else name
-        return self._register(Beam(nodes, E=E, rho=rho, thickness=thickness, width=width,
-                                   area=area, second_moment=second_moment, fibre=fibre,
-                                   damping=damping, frames=frames, reference=reference,
-                                   reference_node=reference_node, name=name))
+        name = f"{Beam.prefix}{len(self.bodies)}" if name is None else name
+        return self.add(Beam(nodes, E=E, rho=rho, thickness=thickness, width=width, area=area,
+                             second_moment=second_moment, fibre=fibre, damping=damping,
+                             frames=frames, reference=reference, reference_node=reference_node,
+                             name=name))
 
     def add_rigid_body(self, *, mass, inertia, position, angle=0.0, velocity=(0.0, 0.0),
                        angular_velocity=0.0, name=None) -> RigidBody:
         """Add a :class:`RigidBody` (reference point = centre of mass)."""
-        name = f"body{len(self.bodies)}" if name is None else name
-        return self._register(RigidBody(mass, inertia, position, angle, velocity=velocity,
-                                         angular_velocity=angular_velocity, name=name))
+        name = f"{RigidBody.prefix}{len(self.bodies)}" if name is None else name
+        return self.add(RigidBody(mass, inertia, position, angle, velocity=velocity,
+                                  angular_velocity=angular_velocity, name=name))
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (``"ground"`` for the ground)."""
@@ -114,77 +149,14 @@ class Model:
         known = ", ".join(repr(b.name) for b in self.bodies) or "none"
         raise ModelError(f"model {self.name!r} has no body {name!r} (bodies: {known})")
 
-    # ---- joints
-    def _own(self, body, what):
-        if isinstance(body, str):
-            body = self.body(body)
-        if not isinstance(body, Body):
-            raise ModelError(f"{what}: expected a body of this model or its name, "
-                             f"got {_show(body)}")
-        if body is not self.ground and not any(body is b for b in self.bodies):
-            other = body._model.name if body._model is not None else None
-            where = f" (it belongs to model {other!r})" if other is not None else ""
-            raise ModelError(f"{what}: body {body.name!r} is not part of model "
-                             f"{self.name!r}{where}; add it to this model first")
-        return body
-
-    def _joint_name(self, name, prefix):
-        name = f"{prefix}{len(self.joints)}" if name is None else _check_name(name, "joint")
-        if any(j.name == name for j in self.joints):
-            raise ModelError(f"model {self.name!r}: a joint named {name!r} already exists")
-        return name
-
-    def _load_name(self, name, prefix, count):
-        """A unique name among the loads and force elements (``prefix<count>`` by default)."""
-        name = f"{prefix}{count}" if name is None else _check_name(name, "load")
-        if any(ld.name == name for ld in self.forces + self.torques + self.springs
-               + self.line_loads):
-            raise ModelError(f"model {self.name!r}: a load named {name!r} already exists "
-                             "(loads and force elements share one set of names)")
-        return name
-
-    def _check_point_on(self, body, at, what):
-        """``at`` as a point; on a beam it must be a node (to 1e-6 of the beam's size, at least
-        1e-6 length units) and the node's exact coordinates are returned, so every side of a
-        joint sees one point. Any point of the plane is a material point of a rigid body."""
-        at = _point(at, "at", what)
-        if isinstance(body, Beam):
-            k, dist = body.nearest_node(at)
-            tol = 1e-6 * max(body.size, 1.0)
-            if dist > tol:
-                node = tuple(float(x) for x in np.round(_real(body.nodes[k]), 6))
-                raise ModelError(
-                    f"{what}: point {tuple(float(x) for x in np.round(_real(at), 6))} is not at "
-                    f"a node of beam {body.name!r}; nearest is node {k} at {node}, distance "
-                    f"{dist:.6g} (tolerance {tol:.3g}). Joints and loads act at beam nodes: use "
-                    "that node's coordinates or add a node there"
-                )
-            return body.nodes[k].copy()
-        return at
-
+    # ---- joints (morphlab.model.joints; bodies by object or name, points global)
     def add_revolute(self, a, b, *, at, name=None) -> Revolute:
         """Pin ``a`` and ``b`` together at the global point ``at`` (a node if on a beam)."""
-        name = self._joint_name(name, "revolute")
-        a, b = self._own(a, f"revolute {name!r}"), self._own(b, f"revolute {name!r}")
-        if a is b:
-            raise ModelError(f"revolute {name!r}: connects body {a.name!r} to itself")
-        for body in (a, b):
-            at = self._check_point_on(body, at, f"revolute {name!r}")
-        j = Revolute(name, a, b, at)
-        self.joints.append(j)
-        return j
+        return self.add(Revolute(name, a, b, at))
 
     def add_weld(self, a, b, *, at, name=None) -> Weld:
         """Rigidly connect ``a`` and ``b`` at ``at`` (position and relative angle held)."""
-        name = self._joint_name(name, "weld")
-        a, b = self._own(a, f"weld {name!r}"), self._own(b, f"weld {name!r}")
-        if a is b:
-            raise ModelError(f"weld {name!r}: connects body {a.name!r} to itself")
-        for body in (a, b):
-            at = self._check_point_on(body, at, f"weld {name!r}")
-        j = Weld(name, a, b, at)
-        self.joints.append(j)
-        return j
+        return self.add(Weld(name, a, b, at))
 
     def add_prismatic(self, a, b, *, at, axis, name=None) -> Prismatic:
         """Let ``b`` slide along ``a``: the point of ``b`` at ``at`` (a node if on a beam)
@@ -192,38 +164,11 @@ class Model:
         configuration; any length) fixed in ``a`` (or the ground), and the relative rotation of
         ``a`` and ``b`` is locked. Its reaction (:meth:`Result.reaction`) is the guide's
         action on ``b``: the normal force and the locking moment."""
-        name = self._joint_name(name, "prismatic")
-        what = f"prismatic {name!r}"
-        a, b = self._own(a, what), self._own(b, what)
-        if a is b:
-            raise ModelError(f"{what}: connects body {a.name!r} to itself")
-        for body in (a, b):
-            at = self._check_point_on(body, at, what)
-        axis = _point(axis, "axis", what)
-        if not np.hypot(*_real(axis)) > 0:
-            raise ModelError(f"{what}: axis must be a nonzero direction (x, y), got "
-                             f"{_show(axis)}")
-        j = Prismatic(name, a, b, at, axis)
-        self.joints.append(j)
-        return j
+        return self.add(Prismatic(name, a, b, at, axis))
 
     def add_fix(self, body, *, at, dofs="xyr", name=None) -> Fix:
         """Fix any of ``x``, ``y``, ``r`` (rotation) of the point ``at`` of ``body`` to ground."""
-        name = self._joint_name(name, "fix")
-        body = self._own(body, f"fix {name!r}")
-        if body is self.ground:
-            raise ModelError(f"fix {name!r}: the ground is fixed already")
-        if not isinstance(dofs, str) or not dofs or set(dofs) - set("xyr") or len(set(dofs)) != len(
-            dofs
-        ):
-            raise ModelError(
-                f"fix {name!r}: dofs must be a non-empty string of distinct letters from 'x', "
-                f"'y', 'r', got {dofs!r}"
-            )
-        at = self._check_point_on(body, at, f"fix {name!r}")
-        j = Fix(name, body, at, "".join(sorted(dofs, key="xyr".index)))
-        self.joints.append(j)
-        return j
+        return self.add(Fix(name, body, at, dofs))
 
     def add_drive(self, body, *, angle=None, speed=None, at=None, name=None) -> Drive:
         """Prescribe the rotation of ``body`` (or of the beam node at ``at``) by its angle or
@@ -247,71 +192,47 @@ class Model:
             Neither or both of ``angle`` and ``speed``; a speed profile without a closed-form
             integral; ``angle(0) != 0``.
         """
-        name = self._joint_name(name, "drive")
-        body = self._own(body, f"drive {name!r}")
-        if body is self.ground:
-            raise ModelError(f"drive {name!r}: cannot drive the ground")
-        if (angle is None) == (speed is None):
-            raise ModelError(f"drive {name!r}: give exactly one of angle= (a profile of the "
-                             "angle, 0 at t=0) and speed= (a profile of the angular speed)")
-        if speed is not None:
-            spd = _profile(speed, f"drive {name!r} speed")
-            try:
-                prof = spd.integral(0.0)
-            except ModelError as exc:
-                raise ModelError(f"drive {name!r}: speed= needs a profile with a closed-form "
-                                 f"integral: {exc}") from None
-        else:
-            prof = _profile(angle, f"drive {name!r}")
-        f0 = _real(prof.value(0.0))
-        if abs(f0) > 1e-12:
-            raise ModelError(
-                f"drive {name!r}: angle(0) must be 0 (the drive is relative to the initial angle),"
-                f" got {f0:.6g}"
-            )
-        if at is not None:
-            at = self._check_point_on(body, at, f"drive {name!r}")
-        elif isinstance(body, Beam):
-            at = body.nodes[drive_node(body)]
-        j = Drive(name, body, prof, at)
-        self.joints.append(j)
-        return j
+        return self.add(Drive(name, body, angle, at, speed))
 
-    # ---- loads
+    def add_gear(self, a, b, *, ratio, at_a=None, at_b=None, name=None) -> Gear:
+        """Couple the rotations of ``a`` and ``b``: ``(theta_a + phi_a) - ratio (theta_b +
+        phi_b)`` stays at its initial value (a gear pair, a belt, a coupler; :class:`Gear`).
+
+        Parameters
+        ----------
+        a, b : Body or str
+            The bodies (or their names; either may be the ground).
+        ratio : float
+            Turn of ``a`` per turn of ``b`` (teeth of ``b`` / teeth of ``a``), nonzero;
+            negative when the senses are opposite (an external gear pair).
+        at_a, at_b : (2,), optional
+            The beam node whose rotation counts, needed where a side is a beam (global
+            coordinates of the initial configuration).
+
+        Raises
+        ------
+        ModelError
+            A ratio that is zero or not a finite number, unknown bodies or bodies of another
+            model, a body coupled to itself, a missing or off-node point on a beam.
+        """
+        return self.add(Gear(name, a, b, ratio, at_a, at_b))
+
+    # ---- loads (morphlab.model.loads)
     def add_force(self, body, *, at, force, profile=None, name=None,
                   follower: bool = False) -> Force:
         """Apply ``force * profile(t)`` [N] at the point ``at`` of ``body``: of fixed global
         direction, or with ``follower`` a force that turns with the material point's rotation
         (:class:`~morphlab.model.pressure.FollowerForce`; ``force`` then gives its components
         in the initial configuration)."""
-        name = self._load_name(name, "force", len(self.forces))
-        body = self._own(body, f"force {name!r}")
-        if body is self.ground:
-            raise ModelError(f"force {name!r}: cannot load the ground")
-        at = self._check_point_on(body, at, f"force {name!r}")
-        f = _point(force, "force", f"force {name!r}")
         if not isinstance(follower, (bool, np.bool_)):
             raise ModelError(f"force {name!r}: follower must be True or False, got "
                              f"{_show(follower)}")
-        cls = FollowerForce if follower else Force
-        ld = cls(body, at, f, _profile(profile, f"force {name!r}"), name)
-        self.forces.append(ld)
-        return ld
+        return self.add((FollowerForce if follower else Force)(body, at, force, profile, name))
 
     def add_torque(self, body, magnitude, *, profile=None, at=None, name=None) -> Torque:
         """Apply a torque ``magnitude * profile(t)`` [N·mm] to ``body`` (at the beam node ``at``
         when given: the torque then also works on that node's rotation)."""
-        name = self._load_name(name, "torque", len(self.torques))
-        body = self._own(body, f"torque {name!r}")
-        if body is self.ground:
-            raise ModelError(f"torque {name!r}: cannot load the ground")
-        _numeric(magnitude, "magnitude", f"torque {name!r}")
-        magnitude = _upcast(magnitude)
-        if at is not None:
-            at = self._check_point_on(body, at, f"torque {name!r}")
-        tq = Torque(body, magnitude, _profile(profile, f"torque {name!r}"), at, name)
-        self.torques.append(tq)
-        return tq
+        return self.add(Torque(body, magnitude, profile, at, name))
 
     # ---- force elements (morphlab.model.forces; docs/theory.md §4.6)
     def add_spring(self, name, body_a, body_b, *, at_a, at_b, stiffness, damping=0.0,
@@ -341,11 +262,8 @@ class Model:
             or rest length, coinciding points (the direction of the force is undefined), a name
             already used.
         """
-        name = self._load_name(name, "spring", len(self.springs))
-        sp = make_spring(self, name, body_a, body_b, at_a, at_b, stiffness, damping,
-                         rest_length, preload)
-        self.springs.append(sp)
-        return sp
+        return self.add(Spring(name, body_a, body_b, at_a, at_b, stiffness, damping,
+                               rest_length, preload))
 
     def add_rotational_spring(self, name, joint_or_bodies, *, at_a=None, at_b=None, stiffness,
                               damping=0.0, rest_angle=None, preload=0.0) -> RotationalSpring:
@@ -370,11 +288,10 @@ class Model:
         preload : float
             Constant moment [N·mm].
         """
-        name = self._load_name(name, "rotational_spring", len(self.springs))
-        sp = make_rotational_spring(self, name, joint_or_bodies, at_a, at_b, stiffness,
-                                    damping, rest_angle, preload)
-        self.springs.append(sp)
-        return sp
+        pair = isinstance(joint_or_bodies, (tuple, list)) and len(joint_or_bodies) == 2
+        a, b = joint_or_bodies if pair else (None, None)
+        return self.add(RotationalSpring(name, a, b, at_a, at_b, stiffness, damping, rest_angle,
+                                         preload, joint=None if pair else joint_or_bodies))
 
     def add_line_load(self, name, beam, *, q, profile=None, elements=None) -> LineLoad:
         """Add a distributed load ``q * profile(t)`` of fixed global direction on a beam.
@@ -391,10 +308,7 @@ class Model:
         The load is applied consistently with the beam's shape functions (work-equivalent),
         on every floating frame that holds a loaded element.
         """
-        name = self._load_name(name, "line_load", len(self.line_loads))
-        ld = make_line_load(self, name, beam, q, profile, elements)
-        self.line_loads.append(ld)
-        return ld
+        return self.add(LineLoad(name, beam, q, profile, elements))
 
     def add_pressure(self, name, beam, p, *, profile=None, elements=None,
                      width=None) -> Pressure:
@@ -415,13 +329,8 @@ class Model:
         width : float or (n_elements,), optional
             Out-of-plane width [mm] the pressure acts on; default the beam's section width.
         """
-        name = self._load_name(name, "pressure", len(self.pressures))
-        pr = make_pressure(self, name, beam, p, profile, elements, width)
-        self.pressures.append(pr)
-        return pr
+        return self.add(Pressure(name, beam, p, width, profile, elements))
 
     def __repr__(self) -> str:
-        return (f"Model({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
-                f"{len(self.forces)} forces, {len(self.torques)} torques, "
-                f"{len(self.springs)} springs, {len(self.line_loads)} line loads, "
-                f"{len(self.pressures)} pressures)")
+        counts = ", ".join(f"{len(getattr(self, c))} {c.replace('_', ' ')}" for c in COLLECTIONS)
+        return f"Model({self.name!r}: {counts})"

@@ -49,7 +49,8 @@ def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool) ->
                 np.zeros((K, 0 if dense else F.Lx.size), dt),
                 np.zeros((K, 0 if dense else F.Ux.size), dt),
                 np.zeros((K, 0 if dense else F.Ud.size), dt),
-                np.zeros((K, 2, system.nnz if blocks else 0), dt), np.zeros((K + 1, system.n_dof), dt),
+                np.zeros((K, 2, system.nnz if blocks else 0), dt),
+                np.zeros((K + 1, system.n_dof), dt),
                 np.zeros((K + 1, system.n_dof), dt), np.zeros((K + 1, system.n_dof), dt),
                 np.zeros((K + 1, system.n_con), dt), np.array([k0], dtype=np.int64))
 
