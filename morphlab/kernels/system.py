@@ -20,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._jit import inner
+from .assemble import POS  # noqa: F401 - importing assemble registers every kind first
 from .schema import KINDS, TIME
 
 #: The kinds, in the order of :data:`SystemArrays` (after ``gravity``).
