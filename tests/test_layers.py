@@ -2,7 +2,7 @@
 
 Stages in data-flow order (import order):
 
-    kernels < errors < model < compile < results < solve < sensitivity < warmup
+    kernels < jit < errors < model < compile < results < solve < sensitivity < warmup
             < plots, io < studies < morphing < bench, cli
 
 ``results`` comes before ``solve`` because the solver fills a Result. ``bench`` and
@@ -20,7 +20,7 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-STAGES = ["kernels", ("errors", "_version"), "model", "compile", "results", "solve",
+STAGES = ["kernels", "jit", ("errors", "_version"), "model", "compile", "results", "solve",
           "sensitivity", "warmup", ("plots", "io"), "studies", "morphing", ("bench", "cli")]
 RANK = {}
 for rank, stage in enumerate(STAGES):
@@ -129,11 +129,15 @@ def test_every_stage_is_a_folder_or_module(stage):
 
 
 def test_every_package_is_installed():
-    """pyproject.toml lists each package of the tree, so a wheel (``pip install .``, not
-    only the editable install) carries all of them."""
-    text = (ROOT / "pyproject.toml").read_text()
-    block = text.split("packages = [", 1)[1].split("]", 1)[0]
-    listed = {name.strip().strip('"') for name in block.replace("\n", " ").split(",")} - {""}
+    """pyproject.toml finds the packages of the tree (``[tool.setuptools.packages.find]``),
+    so a wheel (``pip install .``, not only the editable install) carries all of them."""
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+
+    import setuptools
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    find = config["tool"]["setuptools"]["packages"]["find"]
+    listed = set(setuptools.find_packages(str(ROOT), include=find["include"]))
     found = {"morphlab." + ".".join(p.parent.relative_to(ROOT / "morphlab").parts)
              for p in (ROOT / "morphlab").rglob("__init__.py")}
     found = {name.rstrip(".") for name in found}

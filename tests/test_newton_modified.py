@@ -10,8 +10,8 @@ from morphlab import morphing as mo
 
 def test_modified_newton_gives_the_full_newton_solution_with_fewer_factorizations():
     s = ml.compile_model(mo.build(mo.DEFAULTS))
-    full = ml.simulate(s, **mo.SETTINGS)
-    mod = ml.simulate(s, newton="modified", **mo.SETTINGS)
+    full = ml.simulate(s, settings=mo.SETTINGS)
+    mod = ml.simulate(s, settings=mo.SETTINGS, newton="modified")
     # Both stop when the estimated position error is below tol = 1e-10 of the model size
     # (~140 mm): the histories agree to a few times that.
     assert np.max(np.abs(mod.q - full.q)) < 1e-8 * s.length_scale

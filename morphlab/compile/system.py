@@ -157,6 +157,21 @@ class System:
         t = self.table(kind)
         return 0 if t is None else int(t[0].shape[0])
 
+    def owner(self, kind: str, i: int) -> str:
+        """How messages name the model item behind row ``i`` of the table ``kind``: the item's
+        kind and name (``"force 'F'"``, ``"drive 'motor'"``: a constraint row by its joint),
+        the row's kind and name when no item has that name."""
+        name = self.names.get(kind, [""] * (i + 1))[i]
+        table = self.table(kind)
+        if table is not None and hasattr(table, "con"):  # a constraint row: its joint
+            name = self.con_joint[int(table.con[i])]
+        from .compile import items_of  # here: compile imports this module
+
+        for item in items_of(self.model):
+            if getattr(item, "name", None) == name:
+                return getattr(item, "owner", f"{type(item).__name__} {name!r}")
+        return f"{kind} item {name!r}" if name else f"{kind} item {i}"
+
     def body(self, name: str) -> BodyInfo:
         """Index information of the body called ``name``."""
         try:
@@ -245,9 +260,6 @@ def _profile_table(prof, times: np.ndarray, owner: str) -> tuple:
                        step=k) from cause
 
 
-_OWNER = {"rows": "drive", "slides": "constraint", "loads": "force", "torques": "torque",
-          "lines": "line load", "pressures": "pressure", "followers": "follower force"}
-
 
 def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
                ) -> Times:
@@ -279,13 +291,12 @@ def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None
             out.append(None)
             continue
         base = np.asarray(system.time_base[name]).astype(dt)
-        names = system.names.get(name, [])
         fields = [f for f in kind.fields if f.role == "time"]
         if kind.timing == "drive":
             c = np.repeat(base[None], n_t, axis=0)
             cd, cdd = np.zeros_like(c), np.zeros_like(c)
             for i, prof in system.time_profiles.get(name, ()):
-                f, f1, f2 = tab(prof, f"{_OWNER.get(name, name)} {names[i]!r}")
+                f, f1, f2 = tab(prof, system.owner(name, i))
                 c[:, i] += f
                 cd[:, i] = f1
                 cdd[:, i] = f2
@@ -293,7 +304,7 @@ def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None
         else:
             x = np.repeat(base[None], n_t, axis=0)
             for i, prof in system.time_profiles.get(name, ()):
-                f = np.asarray(tab(prof, f"{_OWNER.get(name, name)} {names[i]!r}")[0])
+                f = np.asarray(tab(prof, system.owner(name, i))[0])
                 x[:, i] *= f.reshape((n_t,) + (1,) * (x.ndim - 2))
             arrays = [x]
         out.append(kind.times(*(np.ascontiguousarray(a[None]) for a in arrays[:len(fields)])))

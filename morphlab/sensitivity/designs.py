@@ -77,11 +77,9 @@ def check_same_layout(a: System, b: System, name: str) -> None:
                 rows = np.flatnonzero(np.any((x != y).reshape(x.shape[0], -1), axis=1)) \
                     if x.shape == y.shape else [0]
                 i = int(rows[0]) if len(rows) else 0
-                names = a.names.get(kind, [])
-                item = f"{kind} item {names[i]!r}" if i < len(names) and names[i] else \
-                    f"{kind} item {i}"
                 raise SensitivityError(
-                    f"changing design variable {name!r} moves {item} to other coordinates "
+                    f"changing design variable {name!r} moves {a.owner(kind, i)} to other "
+                    "coordinates "
                     "(another node or body): build(p) must keep every load, joint and element "
                     "where it is")
 

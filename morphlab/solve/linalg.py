@@ -39,6 +39,14 @@ CHUNK_BYTES = 8 * 2**20
 DENSE_MAX = 24
 
 
+class SingularFactor(RuntimeError):
+    """A dense LU found no nonzero pivot for column ``column`` of the matrix."""
+
+    def __init__(self, column: int):
+        super().__init__(f"Factor is exactly singular (pivot {column})")
+        self.column = column
+
+
 class Factor:
     """A factorization of one step matrix ``A`` (n, n).
 
@@ -284,7 +292,7 @@ class StepFactorization:
             csc_to_dense(data, self.indices, self.indptr, A)
             bad = lu_factor(A, piv)
             if bad >= 0:
-                raise RuntimeError(f"Factor is exactly singular (pivot {bad})")
+                raise SingularFactor(bad)
             return _DenseLU(A, piv)
         if self._order is None:
             lu, d, self._order = first_factor(data, self.indices, self.indptr, self.n)

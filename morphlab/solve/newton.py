@@ -34,7 +34,7 @@ from ..kernels.newton import (
 )
 from ..kernels.system import Parts, Times
 from ..kernels.types import Level
-from .linalg import Factor, StepFactorization
+from .linalg import Factor, SingularFactor, StepFactorization
 from .superlu import PIVOT_THRESHOLD
 
 
@@ -155,6 +155,9 @@ class NewtonSolver:
         p.fill(z, self.data, self.W)
         try:
             lu = self.factorization(self.data[0])
+        except SingularFactor as exc:
+            raise singular(p, "no nonzero pivot left for the column of "
+                           f"{self.system.unknown_names[exc.column]}") from None
         except RuntimeError as exc:
             raise singular(p, str(exc)) from None
         self.n_factorizations += 1

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -123,9 +124,11 @@ class Settings:
             if missing:
                 raise ModelError(f"settings {missing} are required (t_end and dt [s])")
             out = cls(**options)
+        elif isinstance(settings, Mapping) and not isinstance(settings, Settings):
+            return cls.of(None, **{**settings, **options})
         elif not isinstance(settings, Settings):
-            raise ModelError(f"settings must be a morphlab.Settings, got "
-                             f"{type(settings).__name__}")
+            raise ModelError(f"settings must be a morphlab.Settings (or a dict of its "
+                             f"fields), got {type(settings).__name__}")
         else:
             out = dataclasses.replace(settings, **options)
         out.validate()

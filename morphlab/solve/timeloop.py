@@ -145,7 +145,8 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     loop = _Loop(system, settings, stepper, hist, T, t, n_steps, observer, hook, progress,
                  max_halvings, q0, v0)
     result = loop.run()
-    if failure is not None:
+    if failure is not None:  # the steps before the profile failed: a failed run's result
+        result.status, result.message = "failed", str(failure)
         failure.result = result
         raise failure
     report_findings(result, assess(result, settings.constraint_tol, settings.kinematic_tol),
@@ -272,6 +273,9 @@ class _Loop:
         if status == CONVERGED or status == PIVOT_REFUSED:
             if status == PIVOT_REFUSED:
                 nw.n_factorizations += it - 1
+            return k
+        if self.max_halvings > 0:  # step k again from Python, which can sub-step it
+            nw.n_factorizations += it
             return k
         # a failure at step k: the error of the step-by-step solver, with the step's problem
         prev = self.hist.state(k - 1)
