@@ -150,9 +150,9 @@ def fresh_process(scenario: str, *, cache_dir: str | None, quick: bool = False,
         wall = time.perf_counter() - w0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if proc.returncode != 0:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-5:]
+            tail = [x.strip() for x in (proc.stderr or proc.stdout).strip().splitlines()[-5:]]
             raise RuntimeError(f"scenario {scenario!r} failed (status {proc.returncode}): "
-                               + " | ".join(tail))
+                               f"{tail[-1] if tail else '?'} (after: {' | '.join(tail[:-1])})")
         with open(path, encoding="utf-8") as fh:
             measured = json.load(fh)
     finally:

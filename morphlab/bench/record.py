@@ -65,14 +65,16 @@ def versions() -> dict:
 def git_state(path: str | os.PathLike | None = None) -> dict:
     """``{"commit": sha, "dirty": bool}`` of the git checkout holding ``path`` (default: this
     package's source); None each when it is not in a git checkout or git is missing.
-    ``dirty`` says that the measured code differed from the commit (uncommitted changes)."""
+    ``dirty`` says that the measured code, the package's files, differed from the commit
+    (uncommitted changes; other files, such as the record itself, do not count)."""
     where = Path(path) if path is not None else Path(__file__).resolve().parents[2]
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=where, capture_output=True,
                              text=True, timeout=30)
         if sha.returncode != 0:
             return {"commit": None, "dirty": None}
-        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                 str(Path(__file__).resolve().parents[1])],
                                 cwd=where, capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.SubprocessError):
         return {"commit": None, "dirty": None}

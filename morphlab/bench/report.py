@@ -85,7 +85,7 @@ def _meta(case: str, e: dict) -> list[str]:
     if "failed_run" in e:
         f = e["failed_run"]
         lines += [f"The latest run of this case ({f['date']}, `{f['command']}`) failed: "
-                  f"{f['error'][:300]}; the figures below are from the run before it.", ""]
+                  f"{cases.clip(f['error'])}; the figures below are from the run before it.", ""]
     return lines
 
 
@@ -98,7 +98,7 @@ def render(record: dict) -> str:
         e = record["cases"][case]
         lines += [f"## {case}: {DESCRIPTIONS[case]}", ""] + _meta(case, e)
         if "error" in e:
-            lines += [f"Failed: {e['error'][:500]}", ""]
+            lines += [f"Failed: {cases.clip(e['error'], 500)}", ""]
             continue
         lines += getattr(cases, case.replace("-", "_"))(e["result"], check)
     if other:

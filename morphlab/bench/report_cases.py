@@ -13,6 +13,13 @@ KERNEL_MIN_S = 0.5
 KERNEL_ROWS = 24
 
 
+def clip(text: str, n: int = 300) -> str:
+    """``text`` cut to about ``n`` characters, keeping its start and its end (where an error
+    message names the exception)."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= n else f"{text[: n // 3]} … {text[-(2 * n) // 3:]}"
+
+
 def s3(st: dict, digits: int = 3) -> str:
     """``median (min–max)`` of a :func:`~morphlab.studies.timing.time_stats` dict."""
     return f"{st['median']:.{digits}g} ({st['min']:.{digits}g}–{st['max']:.{digits}g})"
@@ -57,7 +64,7 @@ def compile(r: dict, check) -> list[str]:  # noqa: A001 - the case's name
     lines = _scenario_rows(r, check) + [""]
     sc = r["scenarios"]
     for s, err in r.get("errors", {}).items():
-        lines += [f"Scenario {s} failed: {err[:300]}", ""]
+        lines += [f"Scenario {s} failed: {clip(err)}", ""]
     if "every-item" in sc:
         lines += [f"Every-item model: {', '.join(sc['every-item'].get('kinds', []))}. A "
                   "method's CPU is its process's minus the quickstart process's of the same "
@@ -150,7 +157,7 @@ def variables(r: dict, check) -> list[str]:
     good = [row for row in r["rows"] if "error" not in row]
     for row in r["rows"]:
         if "error" in row:
-            lines.append(f"| {row['n_x']} | failed: {row['error'][:200]} | | | | | | |")
+            lines.append(f"| {row['n_x']} | failed: {clip(row['error'], 200)} | | | | | | |")
             continue
         t, p = row["seconds"], row["seconds"]["primal"]["median"]
         target = check(f"variables.{row['n_x']}", row["over_primal"]["best"])
