@@ -263,6 +263,22 @@ def test_the_every_item_model_has_every_kind():
     assert set(SCENARIOS) >= {"quickstart", "every-item", "main-command"}
 
 
+def test_peak_memory_is_the_childs_own():
+    """A child process's peak is its own, not its parent's: with 256 MiB held here, a fresh
+    interpreter (with NumPy, ~30-60 MiB) reports far less, and this process at least 256."""
+    import subprocess
+    import sys
+
+    from morphlab.bench.elements import peak_memory_mib
+
+    held = np.ones(2**25)  # 256 MiB, touched
+    code = "from morphlab.bench.elements import peak_memory_mib; print(peak_memory_mib())"
+    child = float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                                 check=True).stdout)
+    assert peak_memory_mib() >= 256.0 and held.sum() == 2**25
+    assert child < 200.0  # 256 MiB or more if the parent's peak were inherited
+
+
 def test_quick_cases_run_end_to_end(tmp_path):
     """The startup case (fresh processes, filled cache) and the pendulum (gradients in one
     process), reduced, into a record and a page: seconds once the kernels are cached."""

@@ -16,11 +16,31 @@ import sys
 
 import numpy as np
 
+
+def peak_memory_mib() -> float:
+    """Peak resident memory of this process [MiB]: ``VmHWM`` of ``/proc/self/status`` on Linux
+    (``getrusage``'s ``ru_maxrss`` is no measure for a child process there: it starts from its
+    parent's peak at the fork, so it reports a large parent's memory). Elsewhere
+    ``ru_maxrss``, which may include the parent's peak."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    import resource
+
+    unit = 2.0**20 if sys.platform == "darwin" else 1024.0  # bytes on macOS, else KiB
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / unit
+
+
 _SIZE_RUN = """
-import json, resource, sys
+import json, sys
 import numpy as np
 import morphlab as ml
 from morphlab import morphing as mo
+from morphlab.bench.elements import peak_memory_mib
 from morphlab.studies.timing import interleaved_times, time_stats
 n_el, n_steps, repeats = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 settings = ml.Settings.of(mo.SETTINGS, t_end=mo.SETTINGS.dt * n_steps)
@@ -37,7 +57,7 @@ t = interleaved_times({"primal": lambda: ml.simulate(system, settings=settings),
                        "direct": direct}, repeats)
 per = {k: {s: v / n_steps for s, v in time_stats(ts).items() if s != "runs"}
        for k, ts in t.items()}
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+peak = peak_memory_mib()
 print(json.dumps({"n_elements": n_el, "n_dof": system.n_dof, "steps": n_steps,
                   "newton_iterations_per_step": float(np.mean(res.newton_iterations[1:])),
                   "primal_per_step_s": per["primal"], "direct_per_step_s": per["direct"],

@@ -8,7 +8,8 @@ checkpoints and the sweep recomputes segments (:mod:`morphlab.sensitivity.adjoin
 responses read the skin's whole history of coordinates (the KS stress aggregates all steps),
 which the run keeps as well (the KS stress's gradient is formed over chunks of steps, its
 derivative with respect to each step's coordinates when the sweep reaches it). The case runs
-in a fresh process whose peak resident memory is read from the operating system; a primal run
+in a fresh process whose peak resident memory is read from the operating system
+(:func:`morphlab.bench.elements.peak_memory_mib`); a primal run
 of the same process is timed beside it.
 """
 
@@ -23,10 +24,11 @@ N_STEPS = 10_000
 BUDGET_MIB = 512
 
 _RUN = """
-import json, resource, sys, time
+import json, sys, time
 import morphlab as ml
 from morphlab import morphing as mo
 from morphlab import Adjoint
+from morphlab.bench.elements import peak_memory_mib
 n_el, n_steps, budget = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 settings = ml.Settings.of(mo.SETTINGS, dt=mo.SETTINGS.t_end / n_steps)
 build = lambda p: mo.build(p, n_elements=n_el, skin="paper")
@@ -40,7 +42,7 @@ t0 = time.perf_counter()
 s = ml.sensitivities(build, p0, mo.RESPONSES, method=Adjoint(memory=budget * 2**20),
                      settings=settings)
 adjoint = time.perf_counter() - t0
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+peak = peak_memory_mib()
 print(json.dumps({"n_elements": n_el, "n_dof": n_dof, "steps": n_steps,
                   "budget_MiB": budget, "primal_s": primal, "adjoint_s": adjoint,
                   "segment_steps": s.stats.get("segment_steps"),
