@@ -197,6 +197,7 @@ def save(record: dict, path: str | os.PathLike) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(_finite(record), fh, indent=1, allow_nan=False)
             fh.write("\n")
+        os.chmod(tmp, p.stat().st_mode & 0o777 if p.exists() else 0o644)  # not mkstemp's 0600
         os.replace(tmp, p)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
