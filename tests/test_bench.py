@@ -46,7 +46,9 @@ def scenario(cpu: float, name: str) -> dict:
 
 #: Results of every case, with distinctive figures the page must show (case -> figures).
 RESULTS = {
-    "compile": ({"main_command": "morphlab morphing --out DIR", "errors": {},
+    "compile": ({"main_command": "morphlab morphing --out DIR",
+                 "errors": {"adjoint": "RuntimeError: scenario 'adjoint' failed (status 1): "
+                                       + "x" * 600 + " ZeroDivisionError: division by zero"},
                  "scenarios": {"quickstart": scenario(17.3, "quickstart"),
                                "direct": {**scenario(38.1, "direct"),
                                           "method_cpu_s": st(20.8)},
@@ -54,7 +56,8 @@ RESULTS = {
                                               "kinds": ["rigid body", "beam"]},
                                "main-command": scenario(61.7, "main-command")}},
                 ["17.3", "20.8", "26.4", "61.7", "steps.run_steps", "≤ 8 ✗", "≤ 10 ✗",
-                 "≤ 15 ✗", "≤ 60 ✗"]),
+                 "≤ 15 ✗", "≤ 60 ✗", "Scenario adjoint failed: RuntimeError",
+                 "… xxx", "ZeroDivisionError: division by zero"]),
     "startup": ({"import_cpu_s": st(0.647), "import_wall_s": st(0.851),
                  "first_result_cpu_s": st(1.17), "first_result_wall_s": st(1.31),
                  "first_result_in_process_wall_s": st(0.6), "cache_dir": "/c"},

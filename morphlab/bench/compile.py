@@ -191,7 +191,8 @@ def case_compile(repeats: int, quick: bool, *, scenarios=SCENARIOS) -> dict:
     compile CPU per kernel; per method the CPU on top of the quickstart's primal.
 
     ``quick`` runs the main command with ``--quick``; ``scenarios`` selects a subset (the
-    methods need ``"quickstart"`` for their difference).
+    methods need ``"quickstart"`` for their difference). A scenario that fails keeps its error
+    in ``"errors"``; the case fails when every scenario does.
     """
     runs: dict = {s: [] for s in scenarios}
     errors: dict = {}
@@ -204,6 +205,9 @@ def case_compile(repeats: int, quick: bool, *, scenarios=SCENARIOS) -> dict:
             except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
                 errors[s] = f"{type(exc).__name__}: {exc}"[:1500]
             print(f"  [compile: {s} done]", file=sys.stderr, flush=True)
+    if not any(runs.values()):
+        raise RuntimeError("every scenario failed: " + "; ".join(f"{k}: {v}" for k, v in
+                                                                 errors.items()))
     out: dict = {"scenarios": {}, "errors": errors,
                  "main_command": "morphlab morphing --out DIR" + (" --quick" if quick else "")}
     for s, ms in runs.items():
