@@ -58,6 +58,7 @@ import numpy as np
 
 import morphlab as ml
 
+from ..solve.settings import Settings
 from ..studies.timing import timed
 
 # morphlab units: mm, t, s, N, MPa
@@ -266,13 +267,13 @@ def scaling_ratio(grad: dict, p: dict = P0) -> float:
 
 
 # ------------------------------------------------------------------------------- the case
-def _agreement(system, mbs, tip, settings: dict, n_steps: int) -> tuple[dict, tuple]:
+def _agreement(system, mbs, tip, settings: Settings, n_steps: int) -> tuple[dict, tuple]:
     """Final tip positions of both codes, of the rigid pendulum, and their differences; with
     Exudyn's Newton counts and tip of this first solve (to check that re-solves repeat it)."""
-    res = ml.simulate(system, **settings)
-    ex_counts = exudyn_solve(mbs, exudyn_settings(settings["t_end"], n_steps, True))
+    res = ml.simulate(system, settings=settings)
+    ex_counts = exudyn_solve(mbs, exudyn_settings(settings.t_end, n_steps, True))
     tip_ml, tip_ex = morphlab_tip(res), exudyn_tip_position(mbs, tip)
-    tip_rigid = rigid_tip(settings["t_end"])
+    tip_rigid = rigid_tip(settings.t_end)
     el_ml, el_ex = tip_ml - tip_rigid, tip_ex - tip_rigid
     agreement = {
         "tip_morphlab_mm": tip_ml.tolist(), "tip_exudyn_mm": tip_ex.tolist(),
@@ -290,16 +291,17 @@ def _agreement(system, mbs, tip, settings: dict, n_steps: int) -> tuple[dict, tu
     return agreement, (ex_counts, tip_ex)
 
 
-def _primal_timings(system, mbs, tip, first: tuple, n_elements: int, settings: dict,
+def _primal_timings(system, mbs, tip, first: tuple, n_elements: int, settings: Settings,
                     n_steps: int, repeats: int) -> dict:
     """Run times of both codes, solve only and with the model built, full and modified
     Newton; ``first``: Exudyn's counts and tip of the first solve (:func:`_agreement`)."""
-    t_end = settings["t_end"]
-    t_ml, res = timed(lambda: ml.simulate(system, **settings), repeats)
-    t_ml_b, _ = timed(lambda: ml.simulate(build(P0, n_elements), **settings), repeats)
+    t_end = settings.t_end
+    t_ml, res = timed(lambda: ml.simulate(system, settings=settings), repeats)
+    t_ml_b, _ = timed(lambda: ml.simulate(build(P0, n_elements), settings=settings),
+                        repeats)
     # like for like with Exudyn's default: the factorization kept over iterations and steps
-    t_ml_mod, res_mod = timed(lambda: ml.simulate(system, newton="modified", **settings),
-                                repeats)
+    t_ml_mod, res_mod = timed(lambda: ml.simulate(system, settings=settings, newton="modified"),
+                              repeats)
     ex_mod = exudyn_settings(t_end, n_steps, True)
     ex_full = exudyn_settings(t_end, n_steps, False)
     t_ex_mod, c_mod = timed(lambda: exudyn_solve(mbs, ex_mod), repeats)
@@ -336,19 +338,19 @@ def _primal_timings(system, mbs, tip, first: tuple, n_elements: int, settings: d
     return primal
 
 
-def _sensitivities(n_elements: int, settings: dict, n_steps: int, repeats: int,
+def _sensitivities(n_elements: int, settings: Settings, n_steps: int, repeats: int,
                    primal: dict) -> dict:
     """Gradients of the final tip y to t and E: morphlab direct and forward differences,
     Exudyn forward differences; their agreement, the scaling law and the run times."""
     build_n = _Builder(n_elements)
     resp = {"tip_y": tip_y}
     t_dir, sens = timed(lambda: ml.sensitivities(build_n, P0, resp, method="direct",
-                                                   **settings), repeats)
+                                                 settings=settings), repeats)
     t_fd_ml, sens_fd = timed(lambda: ml.sensitivities(
-        build_n, P0, resp, method="forward-difference", step=FD_STEP, **settings),
+        build_n, P0, resp, method=ml.FiniteDifference("forward", FD_STEP), settings=settings),
         max(1, repeats // 2))
     t_fd_ex, (y_ex, grad_ex) = timed(
-        lambda: exudyn_gradient(P0, n_elements, settings["t_end"], n_steps),
+        lambda: exudyn_gradient(P0, n_elements, settings.t_end, n_steps),
         max(1, repeats // 2))
     g_dir = {k: float(v) for k, v in sens.gradients["tip_y"].items()}
     g_fd_ml = {k: float(v) for k, v in sens_fd.gradients["tip_y"].items()}
@@ -382,7 +384,7 @@ def compare(repeats: int, n_elements: int, t_end: float = T_END,
     """Agreement, primal timings and sensitivities for one mesh, in this order (the timed
     Exudyn re-solves are checked against the first solve)."""
     dt = t_end / n_steps
-    settings = dict(t_end=t_end, dt=dt, rho_inf=RHO_INF)
+    settings = Settings.of(None, t_end=t_end, dt=dt, rho_inf=RHO_INF)
     system = ml.compile_model(build(P0, n_elements))
     _sc, mbs, tip = exudyn_system(P0, n_elements)  # _sc owns mbs: kept alive to the end
     agreement, first = _agreement(system, mbs, tip, settings, n_steps)

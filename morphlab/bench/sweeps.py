@@ -15,14 +15,15 @@ hits all of them alike; the speed-ups are ratios of medians of the same rounds.
 
 from __future__ import annotations
 
+import dataclasses
 import os
-import statistics
 
 from ..morphing import leading_edge as mo
+from ..solve.settings import Settings
 from ..studies.samplers import latin_hypercube
 from ..studies.sweep import sweep
 from ..studies.tasks import SimulationTask
-from ..studies.timing import interleaved_times
+from ..studies.timing import interleaved_times, time_stats
 
 DASK_WORKERS = 2
 
@@ -37,11 +38,7 @@ def _rounds(fns: dict, repeats: int) -> dict:
     change of the machine's load hits every executor alike; median, min, max of each."""
     for fn in fns.values():
         fn()
-    out = {}
-    for k, times in interleaved_times(fns, repeats).items():
-        out[k] = {"median": statistics.median(times), "min": min(times), "max": max(times),
-                  "runs": len(times)}
-    return out
+    return {k: time_stats(v) for k, v in interleaved_times(fns, repeats).items()}
 
 
 def _executors():
@@ -64,16 +61,14 @@ def _executors():
 
 
 def run(repeats: int, quick: bool) -> dict:
-    settings = dict(mo.SETTINGS)
-    if quick:
-        settings["dt"] = 2.0 * settings["dt"]
+    settings = Settings.of(mo.SETTINGS, dt=2.0 * mo.SETTINGS.dt) if quick else mo.SETTINGS
     n_designs, n_jobs = (24, 100) if quick else (64, 300)
     designs = latin_hypercube({"x_A": (101.0, 103.0), "M_t": (9.0e3, 1.1e4)}, n_designs,
                               seed=0)
     task = SimulationTask(mo.build, mo.RESPONSES, settings)
     trivial = [{"a": float(i)} for i in range(n_jobs)]
     executors, close = _executors()
-    out = {"n_designs": n_designs, "settings": settings, "cpus": os.cpu_count(),
+    out = {"n_designs": n_designs, "settings": dataclasses.asdict(settings), "cpus": os.cpu_count(),
            "dask_workers": DASK_WORKERS if close else None, "designs_per_s": {},
            "time_s": {}, "overhead_per_job_ms": {}, "n_jobs": n_jobs}
     load = os.getloadavg()[0]
@@ -93,22 +88,3 @@ def run(repeats: int, quick: bool) -> dict:
     rate = out["designs_per_s"]
     out["speedup"] = {k: rate[k] / rate["serial"] for k in rate if k != "serial"}
     return out
-
-
-def rows(s: dict) -> list[str]:
-    """Markdown lines of the case (for :func:`morphlab.bench.report.table`)."""
-    dask = f", Dask LocalCluster of {s['dask_workers']} single-thread workers" if s.get(
-        "dask_workers") else " (Dask not installed)"
-    lines = [f"### Parameter studies ({s['n_designs']} morphing designs, dt = "
-             f"{s['settings']['dt']:g} s; {s['cpus']} CPUs{dask})", "",
-             "| executor | designs/s | speed-up | median [s] | min | max | overhead per job "
-             "[ms] |", "|---|---|---|---|---|---|---|"]
-    for k, t in s["time_s"].items():
-        up = s["speedup"].get(k, 1.0)
-        lines.append(f"| {k} | {s['designs_per_s'][k]:.1f} | {up:.2f} | {t['median']:.3f} | "
-                     f"{t['min']:.3f} | {t['max']:.3f} | {s['overhead_per_job_ms'][k]:.3f} |")
-    load = s.get("load_average_1min")
-    load = f" Load average {load[0]:.1f} before, {load[1]:.1f} after." if load else ""
-    lines += ["", f"Overhead: a task that does nothing, one design per job, {s['n_jobs']} jobs "
-                  f"(the pool's start included).{load}", ""]
-    return lines

@@ -4,18 +4,22 @@ The morphing leading edge with a finer skin (:data:`N_ELEMENTS` elements), three
 stress, RMS and max shape error) and ``n_x`` variables: ``n_x - 4`` skin thicknesses, each of
 a group of adjacent elements, and the bell-crank points ``x_B, y_B, x_D, y_D`` (for
 ``n_x = 1``: one thickness for the whole skin). For each ``n_x``: one primal run (build,
-compile, simulate, responses), direct differentiation, the adjoint and, where affordable,
-finite differences (n_x + 1 primal runs), all from the design dict to the gradients.
+compile, simulate, responses), direct differentiation, the adjoint,
+``auto`` and, where affordable, finite differences (n_x + 1 primal runs), all from the design
+dict to the gradients.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
 import morphlab as ml
 
 from ..morphing import leading_edge as mo
-from ..studies.timing import interleaved_times
+from ..studies.timing import interleaved_times, time_stats
+from .gradients import gradient_difference, rounds
 
 #: Skin elements of the model (groups of ~1 element at 200 variables).
 N_ELEMENTS = 240
@@ -42,40 +46,65 @@ def problem(n_x: int, n_elements: int = N_ELEMENTS):
     return build, p0, dict(mo.RESPONSES)
 
 
+def _row(n_x: int, n_el: int, settings, repeats: int) -> dict:
+    """The figures of one ``n_x`` (:func:`case_variables`)."""
+    build, p0, resp = problem(n_x, n_el)
+
+    def primal():
+        r = ml.simulate(build(p0), settings=settings)
+        return {k: f(r) for k, f in resp.items()}
+
+    def sens(method):
+        return lambda: ml.sensitivities(build, p0, resp, method=method, settings=settings)
+
+    t, values = rounds({"primal": primal, "direct": sens("direct"), "adjoint": sens("adjoint"),
+                        "auto": sens("auto")}, repeats)
+    fd_runs = 1 if n_x > 20 else max(1, repeats // 2)
+    t["finite_difference"] = time_stats(interleaved_times(
+        {"fd": sens("forward-difference")}, fd_runs)["fd"])
+    med = {k: v["median"] for k, v in t.items()}
+    over = {k: v / med["primal"] for k, v in med.items()}
+    over["best"] = min(med["direct"], med["adjoint"]) / med["primal"]
+    return {"n_x": n_x, "seconds": t, "over_primal": over, "auto_chose": values["auto"].method,
+            "faster": "direct" if med["direct"] <= med["adjoint"] else "adjoint",
+            "adjoint_vs_direct": gradient_difference(values["adjoint"], values["direct"]),
+            "auto_vs_direct": gradient_difference(values["auto"], values["direct"]),
+            "responses": list(resp)}
+
+
 def case_variables(repeats: int, quick: bool) -> dict:
-    """Wall time of primal, direct, adjoint and finite differences against ``n_x``
-    (medians of interleaved rounds; finite differences timed once where n_x > 20)."""
-    settings = dict(mo.SETTINGS)
+    """Wall time of primal, direct, adjoint, auto and finite differences against ``n_x``.
+
+    For each ``n_x``: one untimed call of each method, then interleaved rounds (medians, min,
+    max); finite differences (n_x + 1 primal runs) in rounds of their own, once where
+    ``n_x > 20``. Every ratio is formed from medians of the same ``n_x``'s rounds. The
+    gradients of the untimed calls are compared (adjoint and auto against direct), and
+    ``auto_chose`` is the method :class:`morphlab.Auto` ran. An ``n_x`` that fails keeps its
+    error in its row (the case fails when all do). ``quick``: a 60-element skin and ``n_x`` up
+    to 20.
+    """
+    settings = mo.SETTINGS
     n_el = 60 if quick else N_ELEMENTS
     rows = []
     for n_x in ([1, 5, 20] if quick else [1, 5, 20, 50, 200]):
-        build, p0, resp = problem(n_x, n_el)
-
-        def primal(build=build, p0=p0, resp=resp):
-            r = ml.simulate(build(p0), **settings)
-            return {k: f(r) for k, f in resp.items()}
-
-        def sens(method, build=build, p0=p0, resp=resp):
-            return lambda: ml.sensitivities(build, p0, resp, method=method, **settings)
-
-        fns = {"primal": primal, "direct": sens("direct"), "adjoint": sens("adjoint")}
-        for fn in fns.values():
-            fn()  # warm-up
-        t = {k: float(np.median(v)) for k, v in interleaved_times(fns, repeats).items()}
-        fd_runs = 1 if n_x > 20 else max(1, repeats // 2)
-        t["finite_difference"] = float(np.median(interleaved_times(
-            {"fd": sens("forward-difference")}, fd_runs)["fd"]))
-        rows.append({"n_x": n_x, "seconds": t,
-                     "over_primal": {k: v / t["primal"] for k, v in t.items()}})
-    return {"n_elements": n_el, "responses": list(resp), "settings": settings, "rows": rows,
-            "crossover": _crossover(rows)}
+        try:
+            rows.append(_row(n_x, n_el, settings, repeats))
+        except Exception as exc:  # the other rows stay measurable
+            rows.append({"n_x": n_x, "error": f"{type(exc).__name__}: {exc}"[:500]})
+    good = [r for r in rows if "error" not in r]
+    if not good:
+        raise RuntimeError(f"every n_x failed, e.g. n_x = {rows[0]['n_x']}: {rows[0]['error']}")
+    return {"n_elements": n_el, "responses": good[0]["responses"],
+            "settings": dataclasses.asdict(settings), "rows": rows,
+            "crossover": _crossover(good)}
 
 
 def _crossover(rows: list) -> float | None:
     """The n_x above which the adjoint is faster than direct (linear interpolation of the
     measured difference), None if it is never or always faster."""
     nx = np.array([r["n_x"] for r in rows], dtype=float)
-    diff = np.array([r["seconds"]["adjoint"] - r["seconds"]["direct"] for r in rows])
+    diff = np.array([r["seconds"]["adjoint"]["median"] - r["seconds"]["direct"]["median"]
+                     for r in rows])
     for k in range(len(nx) - 1):
         if diff[k] > 0 >= diff[k + 1]:
             return float(nx[k] + (nx[k + 1] - nx[k]) * diff[k] / (diff[k] - diff[k + 1]))
