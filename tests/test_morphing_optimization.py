@@ -53,9 +53,9 @@ def test_clearance_gradient_against_central_differences():
     names = ["t4", "x_A", "y_B", "M_t"]
     resp = {"joint_clearance": opt.joint_clearance}
     exact = ml.sensitivities(opt.build, p, resp, variables=names, method="direct",
-                             **le.SETTINGS)
-    fd = ml.sensitivities(opt.build, p, resp, variables=names, method="central-difference",
-                          step=1e-6, **le.SETTINGS)
+                             settings=le.SETTINGS)
+    fd = ml.sensitivities(opt.build, p, resp, variables=names,
+                          method=ml.FiniteDifference("central", step=1e-6), settings=le.SETTINGS)
     for v in names:
         g, f = exact.gradients["joint_clearance"][v], fd.gradients["joint_clearance"][v]
         assert g == pytest.approx(f, rel=1e-5, abs=1e-9), v

@@ -3,7 +3,7 @@
 A SimulationTask must normalize its options once, at construction, into a
 :class:`morphlab.Settings` (from a dict or a Settings object) and pass that object on to
 ``simulate`` / ``sensitivities`` as ``settings=``, never spread as keyword arguments; the
-other keyword options (``max_halvings``, ``refine``, ...) travel apart. The runs are spied on
+other keyword options (``max_halvings``, ``store``, ...) travel apart. The runs are spied on
 to see the keyword arguments they receive.
 """
 
@@ -39,7 +39,7 @@ def spied(monkeypatch):
 
 @pytest.mark.parametrize("gradients", [False, True])
 def test_the_task_passes_one_settings_object_on(spied, gradients):
-    options = {"max_halvings": 1} if not gradients else {"refine": 1}
+    options = {"max_halvings": 1} if not gradients else {"store": "all"}
     task = SimulationTask(build, RESPONSES, {**SETTINGS, **options}, gradients=gradients)
     assert task.settings == Settings.of(**SETTINGS) and task.options == options
     out = sweep(task, DESIGNS[:2], executor="serial")

@@ -111,6 +111,12 @@ class Settings:
             raise KeyError(name)
         return getattr(self, name)
 
+    def __iter__(self):
+        return iter(self.keys())
+
+    def __len__(self) -> int:
+        return len(self.keys())
+
     @classmethod
     def of(cls, settings: Settings | None = None, **options) -> Settings:
         """``settings`` with ``options`` replaced (or new Settings from ``options``),

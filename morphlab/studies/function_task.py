@@ -55,22 +55,21 @@ class FunctionTask(SimulationTask):
         return f"FunctionTask({getattr(self.fn, '__name__', self.fn)!r})"
 
 
-def _settings_of(task: SimulationTask, gradients: bool):
-    """The settings a SimulationTask was given (a Settings object or the dict) for a variant
-    with or without gradients. Without: a sensitivity run's own options (``step``,
-    ``refine``) are left out (they shape only gradients); with: a primal run's own options
-    (``max_halvings``, ``q0``, ``v0``) are refused (a sensitivity run cannot honour them)."""
-    s = task.settings
-    if set(s) == {"settings"}:
-        return s["settings"]
+def _options_of(task: SimulationTask, gradients: bool) -> dict:
+    """The task's keyword options for a variant with or without gradients. Without: the
+    options only a sensitivity run takes (``store``, ...) are left out; with: a primal run's
+    own options (``max_halvings``, ``q0``, ``v0``, ...) are refused (a sensitivity run cannot
+    honour them)."""
+    from .tasks import _allowed
+
+    allowed = _allowed(gradients)
     if gradients:
-        primal = sorted(set(s) & {"max_halvings", "q0", "v0"})
+        primal = sorted(set(task.options) - allowed)
         if primal:
-            raise StudyError(f"this method needs gradients, and the task's settings {primal} "
+            raise StudyError(f"this method needs gradients, and the task's options {primal} "
                              f"are not options of morphlab.sensitivities: give a "
-                             f"SimulationTask with gradients=... and settings it takes")
-        return dict(s)
-    return {k: v for k, v in s.items() if k not in ("step", "refine")}
+                             f"SimulationTask with gradients=... and options it takes")
+    return {k: v for k, v in task.options.items() if k in allowed}
 
 
 def with_gradients(task, names: list[str]):
@@ -84,8 +83,8 @@ def with_gradients(task, names: list[str]):
                          f"{task!r}")
     if task.gradients is True or (task.gradients and set(names) <= set(task.gradients)):
         return task
-    return SimulationTask(task.build, task.responses, _settings_of(task, True),
-                          gradients=list(names), method=task.method)
+    return SimulationTask(task.build, task.responses, task.settings, gradients=list(names),
+                          method=task.method, options=_options_of(task, True))
 
 
 def values_only(task):
@@ -97,4 +96,5 @@ def values_only(task):
             raise StudyError(f"task must be a SimulationTask, a FunctionTask or a function "
                              f"p -> dict, got {task!r}")
         return task
-    return SimulationTask(task.build, task.responses, _settings_of(task, False))
+    return SimulationTask(task.build, task.responses, task.settings,
+                          options=_options_of(task, False))
