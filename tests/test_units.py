@@ -133,3 +133,17 @@ def test_unit_systems_are_consistent():
     assert u.MM_T_S.mass / (u.MM_T_S.length * u.MM_T_S.time**2) == pytest.approx(1e6)
     psi = 4.4482216152605 / 0.0254**2  # lbf/in^2 in Pa
     assert u.IN_LBF_S.mass / (u.IN_LBF_S.length * u.IN_LBF_S.time**2) == pytest.approx(psi)
+
+
+def test_declared_units_travel_with_a_saved_result(tmp_path):
+    """The declaration is stored and read back (the summary names the units); a user's own
+    system keeps its fields."""
+    res = ml.simulate(rod(units="mm-t-s"), t_end=0.01, dt=5e-3)
+    ml.io.save(res, tmp_path / "a.npz")
+    back = ml.io.load(tmp_path / "a.npz")
+    assert back.system.model.units is ml.units.MM_T_S
+    assert "in mm-t-s (mm, t, s, N, MPa)" in back.summary()
+    own = ml.units.UnitSystem("dm-kg-s", 0.1, 1.0, 1.0, "dm, kg, s, dN, ...")
+    res = ml.simulate(rod(E=7e8, rho=2.7, g=98.1, L=3.0, units=own), t_end=0.01, dt=5e-3)
+    ml.io.save(res, tmp_path / "b.npz")
+    assert ml.io.load(tmp_path / "b.npz").system.model.units == own

@@ -23,7 +23,7 @@ from .files import (
     read_file,
     write_file,
 )
-from .system import bodies_meta, system_from, system_meta
+from .system import bodies_meta, system_from, system_meta, units_meta
 
 
 def save(result, path) -> None:
@@ -119,6 +119,7 @@ def _result_header(result: Result, w: Writer) -> dict:
         "morphlab_version": morphlab_version(), "model": model.name,
         "gravity": w.value(np.asarray(model.gravity), "model/gravity", "Model.gravity"),
         "settings": settings, "result": res_meta, "system": sys_meta, "bodies": model_bodies,
+        "units": units_meta(model),
     }
 
 
