@@ -23,7 +23,7 @@ from .errors import (
     SolverError,
     StudyError,
 )
-from .model import Beam, Model, RigidBody
+from .model import Beam, Model, RigidBody, units
 from .model.profiles import (
     Constant,
     Custom,
@@ -75,5 +75,5 @@ __all__ = [
     "SensitivityResult", "Settings", "Sine", "SingularMatrixError", "SmoothStep", "SolverError",
     "State", "StaticSettings", "Strategy", "StudyError", "System", "airfoil", "compile_model",
     "io", "morphing", "plots", "responses", "sensitivities", "simulate", "static", "studies",
-    "warmup", "__version__",
+    "units", "warmup", "__version__",
 ]

@@ -23,21 +23,44 @@ class UsageError(MorphlabError):
     """Bad command-line input (exit status 2)."""
 
 
+#: The command's description in its help (plain text: the help is no reST).
+DESCRIPTION = ("morphlab: planar flexible multibody dynamics with design sensitivities. "
+               "'morphlab morphing --out DIR' runs the paper's morphing leading-edge study; "
+               "'morphlab warmup' compiles the numerical kernels ahead of time.")
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Every option's default in its help, except the "False" of on/off flags and a None
+    (no default: the help says what happens)."""
+
+    def _get_help_string(self, action):
+        if action.default is None or (action.nargs == 0 and action.default is False):
+            return action.help
+        return super()._get_help_string(action)
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="morphlab", description=__doc__.splitlines()[0])
+    fmt = _HelpFormatter
+    p = argparse.ArgumentParser(prog="morphlab", description=DESCRIPTION, formatter_class=fmt)
     p.add_argument("--traceback", action="store_true", help="show the Python traceback on errors")
     sub = p.add_subparsers(dest="command", required=True)
-    m = sub.add_parser("morphing", help="run the morphing leading-edge study (paper §4)")
+    m = sub.add_parser("morphing", help="run the morphing leading-edge study (paper §4)",
+                       description="Run the morphing leading-edge study of the paper (§4): "
+                       "tables, figures and morphing.json in the output folder.",
+                       formatter_class=fmt)
     m.add_argument("--out", default="morphing-out", help="output folder (figures, JSON)")
     m.add_argument("--quick", action="store_true",
                    help="coarser time step and fewer timing repeats (for smoke tests)")
     m.add_argument("--no-figures", action="store_true", help="skip the figures")
     m.add_argument("--no-timing", action="store_true",
                    help="skip the finite-difference timing runs (Table 2)")
-    m.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a design variable, e.g. --set t_w=2.5 (repeatable)")
+    m.add_argument("--set", action="append", default=None, metavar="NAME=VALUE",
+                   help="override a design variable, e.g. --set t_w=2.5 (repeatable; default: "
+                   "the study's design)")
     m.add_argument("--progress", action="store_true", help="show a progress bar")
-    w = sub.add_parser("warmup", help="compile all kernels (fills the Numba cache)")
+    w = sub.add_parser("warmup", help="compile all kernels (fills the Numba cache)",
+                       description="Compile every numerical kernel once (fills the Numba "
+                       "cache next to the kernels, or NUMBA_CACHE_DIR).", formatter_class=fmt)
     w.set_defaults()
     return p
 
@@ -104,7 +127,7 @@ def _publish(staging: str, out: str) -> None:
 def _morphing(args, interrupts: _Interrupts) -> str:
     from .morphing import leading_edge as morphing
 
-    overrides = _overrides(args.set)
+    overrides = _overrides(args.set or [])
     staging = _staging(args.out)
     try:
         _check_design(overrides)

@@ -1,6 +1,11 @@
-"""The exceptions of morphlab: one small hierarchy under :class:`MorphlabError`."""
+"""The exceptions of morphlab: one small hierarchy under :class:`MorphlabError`; its warnings
+under :class:`MorphlabWarning`, emitted by :func:`warn` at the user's line."""
 
 from __future__ import annotations
+
+import os
+import sys
+import warnings
 
 
 class MorphlabError(Exception):
@@ -82,6 +87,14 @@ class AccuracyError(SolverError):
     run, with its ``findings``."""
 
 
+class ConstraintViolationError(AccuracyError):
+    """A finished run violates a joint far beyond ``constraint_tol`` (more than
+    :data:`morphlab.results.checks.FAILURE_FACTOR` times it): the bodies are visibly apart and
+    the run describes another mechanism, so it failed whatever ``checks`` asks for (except
+    ``"off"``). ``time`` and ``step`` are those of the first step beyond that limit,
+    ``result`` the whole run (status ``"failed"``, its ``findings`` name the joint)."""
+
+
 class MorphlabWarning(UserWarning):
     """Base class of the warnings morphlab emits."""
 
@@ -95,6 +108,12 @@ class KinematicAccuracyWarning(AccuracyWarning):
     """A beam's floating frames turn too little with it: the estimated kinematic error of the
     linear frames exceeds ``kinematic_tol`` times the beam's length
     (:mod:`morphlab.results.kinematics`); the message suggests a number of ``frames``."""
+
+
+class UnitsWarning(MorphlabWarning):
+    """A model's data look like a unit mistake (:func:`morphlab.compile.checks.check_units`):
+    a material or gravity that fits no consistent unit system together with the rest of the
+    model, or an angle that looks like degrees. The message names the item."""
 
 
 class Interrupted(KeyboardInterrupt):
@@ -119,3 +138,16 @@ class StudyError(MorphlabError, ValueError):
 class ResourceError(MorphlabError, MemoryError):
     """A run needs more memory than the machine has available (the message says how much and
     what to change)."""
+
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def warn(warning: Warning) -> None:
+    """Emit ``warning`` attributed to the first caller outside the morphlab package (the
+    user's line that called ``simulate``, ``static``, ``sensitivities``, a study, ...), however
+    deep in the library it arises: ``warnings.warn`` with the matching ``stacklevel``."""
+    level, frame = 2, sys._getframe(1)
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(warning, stacklevel=level)

@@ -44,14 +44,14 @@ def test_stretch_of_a_cantilever_bent_by_a_tip_moment_is_phi_squared_l_over_six(
 
 
 def test_it_fires_above_the_tolerance_and_names_the_beam():
-    """Phi = 0.01: stretch 1.7e-3 mm = 1.7e-5 L, quiet at the default 1e-4; Phi = 0.1:
-    0.17 mm = 1.7e-3 L, a warning that suggests ceil(sqrt(17)) = 5 frames; off with None;
+    """Phi = 0.01: stretch 1.7e-3 mm = 1.7e-5 L, quiet at the default 1e-3; Phi = 0.1:
+    0.17 mm = 1.7e-3 L, a warning that suggests ceil(sqrt(1.7)) = 2 frames; off with None;
     an AccuracyError with checks='raise' in a dynamic run."""
     with warnings.catch_warnings():
         warnings.simplefilter("error", ml.errors.MorphlabWarning)
         assert bent(0.01).status == "ok"
         assert bent(0.1, kinematic_tol=None).status == "ok"
-    with pytest.warns(KinematicAccuracyWarning, match=r"beam 'b'.*frames=5") as rec:
+    with pytest.warns(KinematicAccuracyWarning, match=r"beam 'b'.*frames=2") as rec:
         res = bent(0.1)
     assert isinstance(rec[0].message, ml.errors.AccuracyWarning)
     assert res.status == "warning" and res.findings[0].check == "kinematic accuracy"

@@ -1,5 +1,7 @@
-"""Checks of a compiled system: initial configuration on the constraints, and the rank of the
-constraint Jacobian (redundant or conflicting joints), with messages naming the joints."""
+"""Checks of a compiled system: initial configuration on the constraints, the rank of the
+constraint Jacobian (redundant or conflicting joints), with messages naming the joints, and
+the plausibility of the model's units (:func:`check_units`, run by ``simulate`` and ``static``
+before they start)."""
 
 from __future__ import annotations
 
@@ -7,9 +9,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import ModelError
+from ..errors import ModelError, UnitsWarning, warn
 from ..kernels.joints import ANGLE_LIKE
 from ..model import Beam
+from ..model import units as _units
 
 
 def _joint_hint(system, joint_name: str) -> str:
@@ -237,3 +240,16 @@ def check_rank(system) -> None:
         "letters than needed), or move the mechanism out of a dead-point (singular) initial "
         "position."
     )
+
+
+
+def check_units(system, t_end: float | None = None) -> list[str]:
+    """Plausibility of a model's units (:func:`morphlab.model.units.plausibility`: its
+    materials, gravity, rigid-body masses and angles), run by ``simulate`` and ``static``
+    before they start: a :class:`~morphlab.errors.UnitsWarning` at the user's line for each
+    finding, or a :class:`ModelError` where the model declares its units and a value lies far
+    outside them. Returns the messages."""
+    found = _units.plausibility(system.model, t_end, system.length_scale)
+    for text in found:
+        warn(UnitsWarning(text))
+    return found

@@ -65,6 +65,11 @@ names); every other member is one array of the caller's dict under its own key.
     The bodies of the model (not its joints and loads, which live in the System arrays):
     ``{"kind": "rigid" | "beam", "name", <constructor parameters>}``, numbers inline or as
     members ``model/bodies/<i>/<parameter>``; ``"gravity"`` likewise.
+``"units"``
+    The unit system the model declares (``model.units``, :mod:`morphlab.model.units`): its
+    name (``"mm-t-s"``, ``"nondimensional"``), its fields for a user's own
+    :class:`~morphlab.model.units.UnitSystem`, or null (none declared; files without the key
+    read the same).
 
 A time profile is ``{"$profile": "<class name>", "fields": {...}}`` for the profiles of
 :mod:`morphlab.model.profiles` built from numbers (``Constant, Ramp, SmoothStep, Sine, Linear,

@@ -23,7 +23,7 @@ from .files import (
     read_file,
     write_file,
 )
-from .system import bodies_meta, system_from, system_meta
+from .system import bodies_meta, system_from, system_meta, units_meta
 
 
 def save(result, path) -> None:
@@ -42,8 +42,8 @@ def save(result, path) -> None:
     Raises
     ------
     FormatError
-        ``result`` is neither, or holds a value the format cannot represent; nothing is
-        written then.
+        ``result`` is neither (the message says so when the arguments are swapped), or holds
+        a value the format cannot represent; nothing is written then.
     OSError
         The file cannot be written (disk full, no permission): the message names it, an
         existing file at ``path`` is left untouched.
@@ -52,6 +52,10 @@ def save(result, path) -> None:
     -----
     The format is described in the module docstring.
     """
+    if isinstance(path, (Result, SensitivityResult)):
+        raise FormatError(f"save(result, path): the result comes first, then the path; got "
+                          f"{type(result).__name__} {result!r} first and a "
+                          f"{type(path).__name__} second: swap the arguments")
     w = Writer()
     if isinstance(result, SensitivityResult):
         header = _result_header(result.result, w)
@@ -115,6 +119,7 @@ def _result_header(result: Result, w: Writer) -> dict:
         "morphlab_version": morphlab_version(), "model": model.name,
         "gravity": w.value(np.asarray(model.gravity), "model/gravity", "Model.gravity"),
         "settings": settings, "result": res_meta, "system": sys_meta, "bodies": model_bodies,
+        "units": units_meta(model),
     }
 
 

@@ -14,7 +14,7 @@ from ..compile.system import BodyInfo, System
 from ..errors import FormatError
 from ..kernels.schema import KINDS, TIME
 from ..kernels.system import KIND_NAMES, SystemArrays
-from ..model import Beam, Model, RigidBody
+from ..model import Beam, Model, RigidBody, units
 from .encoding import Writer, decode, decode_profile
 
 # System fields with their own representation (everything else: arrays or plain JSON values)
@@ -52,9 +52,22 @@ def bodies_meta(model: Model, w: Writer) -> list:
     return out
 
 
+def units_meta(model) -> str | dict | None:
+    """The unit system a model declares (``model.units``): its name, or its fields for a
+    system of the user's own; None when it declares none."""
+    u = units.of(getattr(model, "units", None))
+    if u is None or isinstance(u, str) or u in units.SYSTEMS:
+        return u if not isinstance(u, units.UnitSystem) else u.name
+    return dataclasses.asdict(u)
+
+
 def rebuild_model(meta: dict, arrays: dict) -> Model:
-    """The model of a file: its bodies and gravity, no joints or loads."""
+    """The model of a file: its bodies, gravity and declared units, no joints or loads."""
     model = Model(gravity=decode(meta["gravity"], arrays), name=meta["model"])
+    declared = meta.get("units")  # files written before units were stored have none
+    if declared is not None:
+        model.units = (units.UnitSystem(**declared) if isinstance(declared, dict)
+                       else units.of(declared))
     for entry in meta["bodies"]:
         p = decode(entry["params"], arrays)
         if entry["kind"] == "rigid":

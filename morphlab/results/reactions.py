@@ -191,3 +191,69 @@ def drive_power_total(result) -> np.ndarray:
         _, cd = s.constraint_violation(result.q[k], 0.0 * result.v[k], result.t[k])
         out[k] = -np.real(np.sum(result.lam[k, driven] * (Jv[driven] - cd[driven])))
     return out
+
+
+def reaction_partials(system, name: str, frame: str | None, q, lam):
+    """The reactions of joint ``name`` at the times of ``q`` (k, n_dof), ``lam`` (k, n_con)
+    (real parts) and their partial derivatives there, by complex step of :func:`_reaction`
+    over all the times at once (the reaction at a time reads only that time's ``q`` and
+    ``lam``): ``(F, dofs, dF_dq, rows, dF_dlam)`` with ``F`` (k, 3), ``dF_dq`` (k, len(dofs),
+    3) over the coordinates ``dofs`` it reads, ``dF_dlam`` (k, len(rows), 3) over the joint's
+    constraint ``rows``."""
+    rows, _ = reaction_rows(system, name)
+    dofs = _touched(system, rows, frame)
+    qc = np.real(np.asarray(q)).astype(complex)
+    lc = np.real(np.asarray(lam)).astype(complex)
+    F = np.real(_reaction(system, name, frame, qc, lc))
+    h = 1e-30
+    dq = np.zeros((qc.shape[0], dofs.size, 3))
+    for j, d in enumerate(dofs):
+        qc[:, d] += 1j * h
+        dq[:, j] = np.imag(_reaction(system, name, frame, qc, lc)) / h
+        qc[:, d] = np.real(qc[:, d])
+    dl = np.zeros((qc.shape[0], rows.size, 3))
+    for j, i in enumerate(rows):
+        lc[:, i] += 1j * h
+        dl[:, j] = np.imag(_reaction(system, name, frame, qc, lc)) / h
+        lc[:, i] = np.real(lc[:, i])
+    return F, dofs, dq, rows, dl
+
+
+def reaction_data_gradient(system, name: str, frame: str | None, q, lam, G) -> dict:
+    """``sum_n sum_c G[n, c] dF[n, c]/du`` over the design data ``u`` of the joint's row
+    kinds (``{"<kind>.u0": array shaped like that field}``), ``F`` the reactions at the times
+    of ``q``, ``lam`` and ``G`` (k, 3) their weights (complex step of :func:`_reaction`)."""
+    rows, _ = reaction_rows(system, name)
+    qc = np.real(np.asarray(q)).astype(complex)
+    lc = np.real(np.asarray(lam)).astype(complex)
+    G = np.real(np.asarray(G))
+    h = 1e-30
+    arrays = system.arrays_as(complex)
+    kinds = np.asarray(system.con_kind)[rows]
+    data = {}
+    for k in np.unique(kinds):
+        kind = KIND_NAMES[int(k)]
+        table = getattr(arrays, kind)
+        u0 = np.array(table.u0)
+        du = np.zeros(u0.shape)
+        for i in np.unique(np.asarray(system.con_item)[rows[kinds == k]]):
+            for idx in np.ndindex(u0.shape[1:]):
+                up = u0.copy()
+                up[(i,) + idx] += 1j * h
+                pert = arrays._replace(**{kind: table._replace(u0=up)})
+                dF = np.imag(_reaction(system, name, frame, qc, lc, pert)) / h
+                du[(i,) + idx] = float(np.sum(G * dF))
+        data[f"{kind}.u0"] = du
+    return data
+
+
+def _touched(system, rows, frame) -> np.ndarray:
+    """The coordinates the reaction of the constraint ``rows`` reads (their items' DOFs, and
+    the angle of the body ``frame`` it is expressed in)."""
+    touched = set()
+    for i in rows:
+        table = system.table(KIND_NAMES[int(system.con_kind[i])])
+        touched.update(int(d) for d in table.dofs[system.con_item[i]].ravel() if d >= 0)
+    if frame is not None:
+        touched.add(int(system.body(frame).ref[2]))
+    return np.array(sorted(touched), dtype=np.int64)

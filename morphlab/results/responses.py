@@ -7,6 +7,8 @@ it by complex step over perturbed histories, so it must keep imaginary parts: us
 ``np.hypot`` on values that carry a derivative.
 
 The factories below return such functions; their values are plain numbers for a real result.
+The joint reactions' responses (:class:`reaction`, :class:`peak_reaction`) live in
+:mod:`morphlab.results.reaction_responses` and are imported here.
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ModelError
-from . import reactions
 from .gradients import ResponseVJP, StressMap, node_positions_vjp, rigid_point_vjp
 
 
@@ -325,32 +326,6 @@ class point_displacement:  # noqa: N801 - a response factory
         return ResponseVJP(value, terms=_terms(n, dq1, 0, -dq0), data={"q0": d0a - d0b})
 
 
-class reaction:  # noqa: N801 - a response factory
-    """Response: one component (0: F_x, 1: F_y, 2: moment) of the reaction of ``joint`` at
-    one time (:meth:`Result.reaction`, in the frame of body ``frame`` or global). Has
-    ``vjp`` (the multipliers, the coordinates and a slide row's guide angle it reads)."""
-
-    def __init__(self, joint: str, component: int, time_index: int = -1,
-                 frame: str | None = None):
-        if component not in (0, 1, 2):
-            raise ModelError(f"component must be 0 (F_x), 1 (F_y) or 2 (moment), got "
-                             f"{component!r}")
-        self.joint, self.component, self.time_index, self.frame = (joint, component,
-                                                                   time_index, frame)
-        self.__name__ = f"reaction_{joint}_{('Fx', 'Fy', 'M')[component]}"
-
-    def __call__(self, result):
-        return reactions.reaction(result, self.joint, self.frame)[self.time_index,
-                                                                  self.component]
-
-    def vjp(self, result) -> ResponseVJP:
-        n = self.time_index % result.n_t
-        dq, dlam, du = reactions.reaction_vjp(result, self.joint, self.component, n,
-                                              self.frame)
-        return ResponseVJP(float(np.real(self(result))), terms={n: {"q": dq, "lam": dlam}},
-                           data=du)
-
-
 def _terms(n1: int, g1, n0: int, g0) -> dict:
     """History terms of ``q`` at two times (which may coincide)."""
     terms = {n1: {"q": g1}}
@@ -359,3 +334,8 @@ def _terms(n1: int, g1, n0: int, g0) -> dict:
     else:
         terms[n0] = {"q": g0}
     return terms
+
+
+# the reactions' responses, which use ks above (re-exported: ml.responses.reaction, ...)
+from .reaction_responses import peak_reaction, reaction  # noqa: E402, F401
+

@@ -48,6 +48,15 @@ class Result:
     analysis : str
         ``"dynamic"`` (:func:`morphlab.simulate`) or ``"static"`` (:func:`morphlab.static`: an
         equilibrium path, ``t`` the load parameter).
+
+    Notes
+    -----
+    Accuracy of the first steps: ``a``, ``lam`` and what is read off them (:meth:`reaction`,
+    :meth:`drive_torque`) carry a transient of first order in the step over the first ~20
+    steps of a run, from the constraint stabilization; positions and velocities do not. On a
+    driven link it is 7.4e-5 of the peak drive torque at dt = 1e-4 s (rho_inf 0.8; 2.0e-4 at
+    rho_inf 0.5), halving with dt, against 2e-8 afterwards; ``stabilization=0`` removes it
+    (``docs/accuracy.md``).
     """
 
     system: System

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ModelError
+from ..results.checks import KINEMATIC_TOL
 from .linalg import DENSE_MAX
 from .scheme import SCHEMES, GeneralizedAlpha, _is_real
 
@@ -78,11 +79,12 @@ class Settings:
         :mod:`morphlab.results.checks`): status ``"warning"`` and an AccuracyWarning, an
         AccuracyError, or nothing.
     constraint_tol : float
-        Largest position-level constraint violation accepted, relative to the model size.
+        Largest position-level constraint violation accepted, relative to the model size;
+        beyond 10 times it the run fails (:class:`~morphlab.errors.ConstraintViolationError`).
     kinematic_tol : float or None
         Largest estimated kinematic error of a beam's floating frames accepted, relative to
-        the beam's length (:mod:`morphlab.results.kinematics`; a
-        :class:`~morphlab.errors.KinematicAccuracyWarning` above it); None: not checked.
+        the beam's length (default 1e-3: docs/frames.md; :mod:`morphlab.results.kinematics`;
+        a :class:`~morphlab.errors.KinematicAccuracyWarning` above it); None: not checked.
     """
 
     t_end: float
@@ -100,7 +102,7 @@ class Settings:
     compiled_newton: bool = True
     checks: str = "warn"
     constraint_tol: float = 1e-3
-    kinematic_tol: float | None = 1e-4
+    kinematic_tol: float | None = KINEMATIC_TOL
 
     # read like a mapping of its fields: ``simulate(m, **settings)``, ``dict(settings, dt=...)``
     def keys(self):
@@ -211,7 +213,8 @@ class StaticSettings:
         Linear solver (as :class:`Settings`).
     kinematic_tol : float or None
         Largest estimated kinematic error of a beam's floating frames accepted, relative to
-        its length (:mod:`morphlab.results.kinematics`); None: not checked.
+        its length (default 1e-3: docs/frames.md; :mod:`morphlab.results.kinematics`); None:
+        not checked.
     """
 
     t: float = 0.0
@@ -219,7 +222,7 @@ class StaticSettings:
     tol: float = 1e-10
     max_iter: int = 30
     dense_max: int = DENSE_MAX
-    kinematic_tol: float | None = 1e-4
+    kinematic_tol: float | None = KINEMATIC_TOL
 
     @classmethod
     def of(cls, settings: StaticSettings | None = None, **options) -> StaticSettings:

@@ -8,11 +8,13 @@ import time as _time
 import numpy as np
 
 from ..compile import System, compile_model
+from ..compile.checks import check_units
 from ..compile.system import time_table
-from ..errors import ConvergenceError, ModelError, SolverError
+from ..errors import ConvergenceError, ModelError, SingularMatrixError, SolverError
 from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
+from .linalg import csc_matrix
 from .scheme import _is_real
 from .settings import StaticSettings
 from .stepper import Stepper
@@ -46,7 +48,7 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     model : Model or System
     settings : StaticSettings, optional; **options
         Its fields: ``t`` (0), ``steps`` (1), ``tol`` (1e-10), ``max_iter`` (30),
-        ``dense_max``, ``kinematic_tol`` (1e-4).
+        ``dense_max``, ``kinematic_tol`` (1e-3).
     q_start : (n_dof,), optional
         Starting configuration (default: the initial configuration).
 
@@ -55,6 +57,14 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     Result
         The equilibrium path (``n_t = steps + 1``), velocities and accelerations zero; its
         ``settings`` the :class:`StaticSettings`.
+
+    Raises
+    ------
+    SingularMatrixError
+        A body that nothing holds in place (no joint, fix, drive, spring or stiffness resists
+        one of its motions): the message names the bodies and their free coordinates.
+    ConvergenceError
+        No equilibrium within ``max_iter`` iterations (try more ``steps``).
 
     Notes
     -----
@@ -67,6 +77,7 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     _check(st)
     kinematic_tol = check_kinematic_tol(st.kinematic_tol)
     system = model if isinstance(model, System) else compile_model(model)
+    check_units(system, float(st.t))  # warns (or raises) before anything runs
     dt = system.dtype
     q = (system.q0 if q_start is None else np.asarray(q_start)).astype(dt)
     times = (np.linspace(0.0, float(st.t), st.steps + 1) if st.steps > 1
@@ -101,6 +112,10 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
         except SolverError as e:
             if isinstance(e, ConvergenceError):
                 e.args = (f"static solve: {e}; try more continuation steps",)
+            elif isinstance(e, SingularMatrixError):
+                free = _unsupported(stp, q, lam, k, float(times[k]))
+                if free:
+                    e.args = (f"static solve: {free}; ({e})",)
             e.result = result(k - 1, "failed", str(e))
             if kinematic_tol is not None:  # what the path showed before it failed
                 e.result.findings = kinematic_findings(e.result, kinematic_tol)
@@ -110,3 +125,52 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     if kinematic_tol is not None:
         report_findings(out, kinematic_findings(out, kinematic_tol), "warn")
     return out
+
+
+#: Largest number of unknowns whose singular equilibrium matrix is searched for its free
+#: bodies (a dense SVD: ~1 s at this size).
+UNSUPPORTED_MAX = 3000
+
+
+def _unsupported(stp: Stepper, q, lam, k: int, t: float) -> str:
+    """The bodies a singular equilibrium matrix leaves free, as a sentence naming them and
+    their free coordinates ("" when there are none or the model is too large to search).
+
+    The null space of the matrix at ``(q, lam)``, after scaling its rows and columns to unit
+    largest entry (lengths, angles and multipliers on one footing), by a dense SVD: the
+    coordinates with a component above 1e-3 in it, grouped by the body that owns them
+    (``system.bodies``)."""
+    system = stp.system
+    n, n_dof = system.n, system.n_dof
+    if n > UNSUPPORTED_MAX:
+        return ""
+    zero_v = np.zeros(n_dof, dtype=system.dtype)
+    p = stp.problem(q, zero_v, stp.step_coef, None, stp.T, k, t, k)
+    p.fill(np.concatenate([zero_v, lam / stp.scale]), stp.newton.data, stp.newton.W)
+    A = np.real(csc_matrix(stp.newton.data[0], system.indices, system.indptr, n).toarray())
+    for axis in (1, 0):  # rows, then columns, to a largest entry of 1
+        m = np.max(np.abs(A), axis=axis, keepdims=True)
+        A = A / np.where(m > 0, m, 1.0)
+    _, sigma, Vt = np.linalg.svd(A)
+    null = Vt[sigma <= 1e-10 * max(sigma[0], 1e-300)]
+    weight = np.sqrt(np.sum(null[:, :n_dof] ** 2, axis=0))
+    owner = {}
+    for name, info in system.bodies.items():
+        dofs = [info.ref.ravel()]
+        for extra in (info.frame_ref, info.node_dofs):
+            if extra is not None:
+                dofs.append(np.asarray(extra).ravel())
+        for d in np.concatenate(dofs):
+            if d >= 0:
+                owner.setdefault(int(d), name)
+    free: dict[str, list[str]] = {}
+    for d in np.flatnonzero(weight > 1e-3):
+        free.setdefault(owner.get(int(d), "?"), []).append(system.dof_names[d])
+    if not free:
+        return ""
+    parts = [f"body {b!r} ({', '.join(ds[:4])}{', ...' if len(ds) > 4 else ''})"
+             for b, ds in free.items()]
+    return (f"nothing holds {' and '.join(parts)} in place at t={t:.6g}: a static "
+            "equilibrium needs every motion of every body resisted by a joint, fix, drive, "
+            "spring or a connected beam's stiffness; support the body, or simulate the "
+            "mechanism")

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import System, compile_model
+from ..compile.checks import check_units
 from ..compile.system import time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
 from ..jit import announce_compilation
@@ -132,6 +133,7 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     ``memmap``: :class:`~morphlab.solve.store.HistoryStore`.
     """
     _check_options(settings, observer, hook, max_halvings)
+    check_units(system, settings.t_end)  # warns (or raises) before anything runs
     announce_compilation(system)
     n_steps = settings.n_steps
     check_memory(system, n_steps + 1, store, memmap)
@@ -377,7 +379,12 @@ def simulate(model: Model | System, *, settings: Settings | None = None,
     Raises
     ------
     ModelError
-        Invalid model or settings.
+        Invalid model or settings; a model that declares its units (``model.units``) with a
+        material, gravity or mass far outside them (:func:`morphlab.compile.checks.
+        check_units`, which otherwise warns: :class:`~morphlab.errors.UnitsWarning`).
+    ConstraintViolationError
+        A joint violated beyond 10 times ``constraint_tol`` (:mod:`morphlab.results.checks`),
+        with ``error.result`` the whole run and ``time``, ``step`` where it went beyond.
     ResourceError
         The histories asked for do not fit the memory available (the message gives the size).
     Interrupted
