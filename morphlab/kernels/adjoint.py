@@ -23,6 +23,8 @@ At the initial solve (time index 0) the sweep stops with ``Bq, Bv`` holding the 
 from typing import NamedTuple
 
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from ._jit import inner, kernel
 from .assemble import matrix
@@ -34,7 +36,7 @@ from .types import Level
 class Keep(NamedTuple):
     """The record of the steps ``k0 <= k < k0 + K`` a sensitivity method reads: row
     ``k - k0`` of the factor values (``LU`` (K, n, n), ``piv`` (K, n) dense; ``Lx``, ``Ux``,
-    ``Ud`` (K, ...) sparse; the other kind's with no columns), of ``D`` (K, 2, nnz), the
+    ``Ud`` (K, ...) sparse; the other kind's None), of ``D`` (K, 2, nnz), the
     ``Dq``, ``Dv`` of the step's last Newton fill, and row ``k - k0 + 1`` of the states ``Q,
     V, A`` (K + 1, n_dof), ``L`` (K + 1, n_con) (row 0: the state before the first step,
     which the caller writes). ``k0`` (1,) int64."""
@@ -104,21 +106,34 @@ def keep(K, F, data, x, k):
         K.A[j + 1, r] = x.a[r]
     for r in range(x.lam.shape[0]):
         K.L[j + 1, r] = x.lam[r]
-    if F.order is None:
-        for r in range(F.LU.shape[0]):
-            K.piv[j, r] = F.piv[r]
-            for c in range(F.LU.shape[1]):
-                K.LU[j, r, c] = F.LU[r, c]
-    else:
-        for p in range(F.Lx.shape[0]):
-            K.Lx[j, p] = F.Lx[p]
-        for p in range(F.Ux.shape[0]):
-            K.Ux[j, p] = F.Ux[p]
-        for p in range(F.Ud.shape[0]):
-            K.Ud[j, p] = F.Ud[p]
+    _copy_row(K.LU, F.LU, j)  # the fields of the factor's kind (the others are None)
+    _copy_row(K.piv, F.piv, j)
+    _copy_row(K.Lx, F.Lx, j)
+    _copy_row(K.Ux, F.Ux, j)
+    _copy_row(K.Ud, F.Ud, j)
     for p in range(K.D.shape[2]):  # the reuse variant's blocks (none in the exact one)
         K.D[j, 0, p] = data[1, p]
         K.D[j, 1, p] = data[2, p]
+
+
+@inner
+def _copy_row(rows, x, j):
+    """``rows[j] = x`` (nothing when ``x`` is None: a field of the other kind of factor)."""
+    if x is not None:
+        flat, src = rows[j].reshape(-1), x.reshape(-1)
+        for p in range(src.shape[0]):
+            flat[p] = src[p]
+
+
+def _row(x, j):
+    """``x[j]``, or None for None (a field of the other kind of factor)."""
+
+
+@overload(_row)
+def _row_typed(x, j):
+    if isinstance(x, types.NoneType):
+        return lambda x, j: None
+    return lambda x, j: x[j]
 
 
 @inner
@@ -131,7 +146,8 @@ def kept_state(K, j):
 def kept_factor(K, F, j):
     """The :class:`~morphlab.kernels.newton.Factors` of row ``j`` of ``K`` (the patterns of
     ``F``)."""
-    return Factors(K.LU[j], K.piv[j], K.Lx[j], K.Ux[j], K.Ud[j], F.order, F.pattern)
+    return Factors(_row(K.LU, j), _row(K.piv, j), _row(K.Lx, j), _row(K.Ux, j), _row(K.Ud, j),
+                   F.order, F.pattern)
 
 
 @inner

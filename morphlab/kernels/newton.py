@@ -9,15 +9,18 @@ and the same arithmetic: bitwise the same iterates.
 
 A factor is a :class:`Factors` of one of two kinds:
 
-* dense (``LU`` (n, n), ``piv`` (n,)): :mod:`morphlab.kernels.dense`; ``order`` and
-  ``pattern`` are None;
+* dense (``LU`` (n, n), ``piv`` (n,)): :mod:`morphlab.kernels.dense`; the sparse fields are
+  None;
 * sparse: the values ``Lx, Ux, Ud`` of :func:`morphlab.kernels.sparse_lu.refactor`, with the
   arrays of the row order it reads, ``order = (gather, pair, b_indices, b_indptr, perm_r,
   work)``, and the patterns its solve reads, ``pattern = (Lp, Li, Up, Ui, row_from,
-  row_scale, col_to, col_scale)``; ``LU`` and ``piv`` are empty.
+  row_scale, col_to, col_scale)``; ``LU`` and ``piv`` are None.
 
-The kind is told by ``order is None``, a test Numba decides when it compiles: a model whose
-step matrices are sparse never compiles the dense LU, and the other way round.
+The kind is told by which fields are None, tests Numba decides when it compiles (a branch
+``if x is None`` on an argument ``x`` typed None is dropped, and so is the branch of ``x is
+not None``): a model whose step matrices are sparse never compiles the dense LU, and the
+other way round. The tests are on arguments (Numba does not decide them on attributes), so
+the helpers below take the fields one by one.
 """
 
 from typing import NamedTuple
@@ -93,44 +96,51 @@ def factor_matrix(data, csc, F, tau):
 
 @inner
 def _factor(data, csc, LU, piv, Lx, Ux, Ud, order, pattern, tau):
-    # ``order`` an argument: Numba drops the branch of the other kind (not for an attribute)
-    if order is None:
-        csc_to_dense(data, csc.indices, csc.indptr, LU)
-        return lu_factor(LU, piv)
-    gather, pair, b_indices, b_indptr, perm_r, work = order
-    Lp, Li, Up, Ui = pattern[0], pattern[1], pattern[2], pattern[3]
-    return refactor(data, gather, pair, b_indices, b_indptr, perm_r, Lp, Li, Up, Ui, Lx, Ux,
-                    Ud, work, tau)
+    if order is None:  # dense: the other branch dropped
+        if LU is not None:  # dropped in a sparse run (LU None), where this branch stays
+            csc_to_dense(data, csc.indices, csc.indptr, LU)
+            return lu_factor(LU, piv)
+        return -1
+    else:
+        gather, pair, b_indices, b_indptr, perm_r, work = order
+        Lp, Li, Up, Ui = pattern[0], pattern[1], pattern[2], pattern[3]
+        return refactor(data, gather, pair, b_indices, b_indptr, perm_r, Lp, Li, Up, Ui, Lx,
+                        Ux, Ud, work, tau)
 
 
 @inner
 def solve_factored(b, work, F):
     """Solve in place for ``b`` (n, m) with the factors ``F`` (``work``: (n, m) scratch, read
     by the sparse solve only)."""
-    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, np.bool_(False))
+    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern)
 
 
 @inner
-def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern, transposed):
+def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern):
     if pattern is None:
-        if transposed:
-            lu_solve_transposed(LU, piv, b)
-        else:
+        if LU is not None:
             lu_solve(LU, piv, b)
     else:
         Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
-        if transposed:
-            sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
-                                    col_scale, b, b, work)
-        else:
-            sparse_solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale,
-                         b, b, work)
+        sparse_solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b, b,
+                     work)
 
 
 @inner
 def solve_factored_transposed(b, work, F):
     """:func:`solve_factored` for the transposed matrix (the adjoint sweep)."""
-    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, np.bool_(True))
+    _solve_transposed(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern)
+
+
+@inner
+def _solve_transposed(b, work, LU, piv, Lx, Ux, Ud, pattern):
+    if pattern is None:
+        if LU is not None:
+            lu_solve_transposed(LU, piv, b)
+    else:
+        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
+        sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
+                                col_scale, b, b, work)
 
 
 @inner

@@ -85,7 +85,7 @@ class AdjointHook(StepHook):
     def _per_step(self, F) -> int:
         s = self.system
         itemsize = np.dtype(s.dtype).itemsize
-        values = (F.LU.size + F.Lx.size + F.Ux.size + F.Ud.size) * itemsize + F.piv.nbytes
+        values = sum(x.nbytes for x in (F.LU, F.piv, F.Lx, F.Ux, F.Ud) if x is not None)
         return values + 2 * s.nnz * itemsize + (3 * s.n_dof + s.n_con) * itemsize
 
     def chunk(self, k0: int, k1: int) -> int:
@@ -119,7 +119,7 @@ class AdjointHook(StepHook):
     def _per_step_of(self, R) -> int:
         """Bytes per step of the record ``R``."""
         return sum(x[0].nbytes for x in (R.LU, R.piv, R.Lx, R.Ux, R.Ud, R.D, R.Q, R.V, R.A,
-                                         R.L))
+                                         R.L) if x is not None)
 
     def record_of(self, k: int) -> tuple:
         """The record that holds step ``k`` (the latest one starting at or before it) and the

@@ -43,12 +43,11 @@ def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool) ->
     loop_arrays`); with ``blocks`` room for each step's ``Dq, Dv`` (the reuse variant)."""
     F = factor_arrays
     dt = system.dtype
-    dense = F.order is None
-    return Keep(np.zeros((K,) + F.LU.shape if dense else (K, 0, 0), dt),
-                np.zeros((K,) + F.piv.shape if dense else (K, 0), np.int64),
-                np.zeros((K, 0 if dense else F.Lx.size), dt),
-                np.zeros((K, 0 if dense else F.Ux.size), dt),
-                np.zeros((K, 0 if dense else F.Ud.size), dt),
+
+    def rows(x, dtype=dt):  # the factor's own fields; None for the other kind's
+        return None if x is None else np.zeros((K,) + x.shape, dtype)
+
+    return Keep(rows(F.LU), rows(F.piv, np.int64), rows(F.Lx), rows(F.Ux), rows(F.Ud),
                 np.zeros((K, 2, system.nnz if blocks else 0), dt),
                 np.zeros((K + 1, system.n_dof), dt),
                 np.zeros((K + 1, system.n_dof), dt), np.zeros((K + 1, system.n_dof), dt),
@@ -156,8 +155,8 @@ def converged_blocks(stepper, sc, new) -> tuple:
 def _fits(K: Keep, F) -> bool:
     """Does the record hold factors of ``F``'s kind and sizes?"""
     if F.order is None:
-        return K.LU.shape[1:] == F.LU.shape
-    return K.Lx.shape[1] == F.Lx.size and K.Ux.shape[1] == F.Ux.size
+        return K.LU is not None and K.LU.shape[1:] == F.LU.shape
+    return K.Lx is not None and K.Lx.shape[1] == F.Lx.size and K.Ux.shape[1] == F.Ux.size
 
 
 def _level(st):

@@ -106,8 +106,7 @@ class _DenseLU(Factor):
         return x.reshape(shape)
 
     def arrays(self) -> Factors:
-        empty = np.zeros(0, dtype=self.LU.dtype)
-        return Factors(self.LU, self.piv, empty, empty, empty, None, None)
+        return Factors(self.LU, self.piv, None, None, None, None, None)
 
 
 class _RowOrder:
@@ -196,8 +195,7 @@ class _SparseLU(Factor):
         return self._apply(sparse_solve_transposed, b)
 
     def arrays(self) -> Factors:
-        dt = self.Lx.dtype
-        return Factors(np.zeros((0, 0), dt), np.zeros(0, np.int64), self.Lx, self.Ux, self.Ud,
+        return Factors(None, None, self.Lx, self.Ux, self.Ud,
                        self.order.order_arrays, self.order.solve_arrays)
 
 
@@ -328,12 +326,10 @@ class StepFactorization:
         empty)."""
         dt = self.dtype
         if self.dense:
-            none = np.zeros(0, dtype=dt)
             return Factors(np.empty((self.n, self.n), dtype=dt),
-                           np.empty(self.n, dtype=np.int64), none, none, none, None, None)
+                           np.empty(self.n, dtype=np.int64), None, None, None, None, None)
         rows = self._rows.ready()
-        return Factors(np.zeros((0, 0), dtype=dt), np.zeros(0, dtype=np.int64),
-                       *rows.empty_factors(), rows.order_arrays, rows.solve_arrays)
+        return Factors(None, None, *rows.empty_factors(), rows.order_arrays, rows.solve_arrays)
 
     def factor_of(self, arrays: Factors) -> Factor:
         """The :class:`Factor` the compiled loop left in ``arrays`` (:meth:`loop_arrays`)."""
