@@ -38,7 +38,7 @@ def test_half_circle_invariants_converge_at_second_order():
     errs = []
     for n in ns:
         system = ml.compile_model(one_beam(half_circle(n, radius), 0)[0])
-        m, Iux, Iuy, I00 = system.body_scal[0]
+        m, Iux, Iuy, I00 = system.arrays.bodies.scal[0]
         # back to the global frame: the body x axis is the first chord, at pi/2 + delta/2. (The
         # body-frame components themselves carry an odd delta³ term from that rotation.)
         th0 = np.pi / 2 + np.pi / (2 * n)

@@ -91,8 +91,9 @@ def test_python_callable_profiles_are_marked_unsaved(tmp_path):
     res = ml.simulate(m, t_end=0.002, dt=1e-3)
     mio.save(res, tmp_path / "custom.npz")
     back = mio.load(tmp_path / "custom.npz")
-    assert isinstance(back.system.torque_prof[-1], mio.UnsavedProfile)
-    assert isinstance(back.system.torque_prof[0], ml.SmoothStep)  # built-ins come back
+    profiles = dict(back.system.time_profiles["torques"])  # torque index -> profile
+    assert isinstance(profiles[back.system.count("torques") - 1], mio.UnsavedProfile)
+    assert isinstance(profiles[0], ml.SmoothStep)  # built-ins come back
     assert same_bits(res.node_positions("coupler"), back.node_positions("coupler"))
     with pytest.raises(FormatError, match="was a Python callable and was not saved"):
         back.energy  # noqa: B018 - the property evaluates the profiles
@@ -123,7 +124,9 @@ def test_file_is_plain_npz_with_json_metadata(run, tmp_path):
     with np.load(path, allow_pickle=False) as npz:  # no morphlab, no pickle needed
         meta = json.loads(str(npz["metadata"][()]))
         assert same_bits(npz["result/q"], run.q)
-    assert meta["format"] == "morphlab-result" and meta["format_version"] == 1
+        # format 2: the system's tables one member per kind and field
+        assert same_bits(npz["system/arrays/bodies/scal"], run.system.arrays.bodies.scal)
+    assert meta["format"] == "morphlab-result" and meta["format_version"] == 2
     assert meta["morphlab_version"] == ml.__version__
     assert meta["model"] == "four-bar"
     assert meta["settings"]["fields"]["dt"] == 1e-3

@@ -11,7 +11,7 @@ Systems*, ch. 5):
   on ``q`` through that NumPy mass matrix;
 * ``Q_g = -∂V/∂q`` with ``V = -∫ρ g^T r dV``, and the strain energy from the NumPy element
   stiffness;
-* the Newton-matrix block of ``body_jacobian`` against complex-step columns of the residual.
+* the bodies' block of the step matrix against complex-step columns of the residual.
 
 The model has a rigid body and two beams (one curved, with its reference node inside the beam;
 one inclined, referenced at its last node), no joints and no loads, so the body kernels are
@@ -24,8 +24,10 @@ import scipy.sparse as sp
 from test_kernels_beam import local_shape, stiffness_reference
 
 import morphlab as ml
-from morphlab.kernels import ffrf
-from morphlab.kernels.system import all_parts
+from morphlab.compile.system import time_table
+from morphlab.kernels import assemble, ffrf
+from morphlab.kernels.system import KIND_NAMES, Parts, all_parts
+from morphlab.kernels.types import Level, Weights
 
 H_CS = 1e-30  # complex step: no subtraction, exact to round-off for any small h
 GRAVITY = np.array([0.4, -0.8])
@@ -167,24 +169,49 @@ def quadratic_velocity_reference(system, q, v):
 
 
 # ---------------------------------------------------------------- kernel calls
-def residual(system, q, v, a, wm, wf, gravity=GRAVITY, stiffness=True):
-    """body_residual on the System arrays (complex when any state is complex)."""
-    dt = np.result_type(q, v, a, float)
-    S = ml.compile.kernel_arrays(system, dt)._replace(gravity=np.asarray(gravity, dtype=dt))
+def arrays(system, dt, gravity=GRAVITY, stiffness=True):
+    """The system's arrays in ``dt`` with the test's gravity (and, without ``stiffness``, the
+    element stiffness zeroed); new tuples, the system's own are untouched."""
+    M = system.arrays_as(dt)._replace(gravity=np.asarray(gravity, dtype=dt))
     if not stiffness:
-        S = S._replace(elem_K=np.zeros_like(S.elem_K))
-    R = np.zeros(system.n_dof, dtype=dt)
-    ffrf.body_residual(S, q.astype(dt), v.astype(dt), a.astype(dt), wm, wf, all_parts(S), R)
-    return R
+        M = M._replace(elements=M.elements._replace(K=np.zeros_like(M.elements.K)))
+    return M
+
+
+def body_residual(system, M, q, v, a, wm, wf, parts=None, W=None):
+    """The whole-system residual kernel over ``parts`` (default all); with no joints and no
+    loads in the model, the body kernels are all of it. Weights: inertia ``wm``, forces
+    ``wf``, no multiplier or constraint terms. ``W``: the bodies' scratch (default fresh)."""
+    dt = M.gravity.dtype
+    n_dof = system.n_dof
+    x = Level(q.astype(dt), v.astype(dt), a.astype(dt), np.zeros(system.n_con, dtype=dt))
+    w = Weights(wm, 0.0, wf, 0.0, 0.0, 1.0, 0.0, 0.0)
+    T = time_table(system, np.zeros(1), dt)
+    P = all_parts(M) if parts is None else parts
+    W = ffrf.scratch(system.count("flex"), x.q) if W is None else W
+    R = np.zeros(system.n, dtype=dt)
+    assemble.residual(M, x, w, T, np.int64(0), np.int64(0), P, np.int64(n_dof), R, W)
+    return R[:n_dof]
+
+
+def residual(system, q, v, a, wm, wf, gravity=GRAVITY, stiffness=True):
+    """The body residual on the System arrays (complex when any state is complex)."""
+    dt = np.result_type(q, v, a, float)
+    return body_residual(system, arrays(system, dt, gravity, stiffness), q, v, a, wm, wf)
 
 
 def jacobian(system, q, v, a, cm, cf, bh2, gh):
-    """body_jacobian scattered into the compiled CSC pattern, as a dense (n_dof, n_dof)."""
-    data = np.zeros(system.nnz)
-    S = ml.compile.kernel_arrays(system, float)._replace(gravity=GRAVITY.copy())
-    ffrf.body_jacobian(S, q, v, a, cm, cf, ((1.0, bh2, gh),), data.reshape(1, -1))
+    """The step-matrix kernel (Newton row ``(1, bh2, gh)``) scattered into the compiled CSC
+    pattern, as a dense (n_dof, n_dof)."""
+    M = arrays(system, float)
+    x = Level(q, v, a, np.zeros(system.n_con))
+    w = Weights(cm, 0.0, cf, 0.0, 0.0, 1.0, 0.0, 0.0)
+    T = time_table(system, np.zeros(1))
+    data = np.zeros((1, system.nnz))
+    assemble.matrix(M, x, w, T, np.int64(0), np.int64(0), np.array([[1.0, bh2, gh]]), data,
+                    ffrf.scratch(system.count("flex"), q))
     n = system.n
-    return sp.csc_matrix((data, system.indices, system.indptr), shape=(n, n)).toarray()
+    return sp.csc_matrix((data[0], system.indices, system.indptr), shape=(n, n)).toarray()
 
 
 # ---------------------------------------------------------------- tests
@@ -263,37 +290,56 @@ def test_body_jacobian_equals_complex_step_columns(system, state, case):
     assert np.count_nonzero(big) > 3 * n  # many coupled entries, not just a diagonal
 
 
-def test_part_residual_equals_the_residual_over_the_same_parts(system, state):
-    """body_part_residual (a pseudo-load's few parts, on reused scratch) gives body_residual's
-    numbers over the same parts bit for bit, leaves its scratch zero, and so does not leak one
-    call's products into the next. Parts as a design variable forms them: some elements,
-    their bodies and coordinates, and the masked coordinates of a body whose invariants
-    changed; complex data as in a complex step (a real state)."""
-    from morphlab.kernels.direct import part_scratch
-    from morphlab.kernels.system import Parts
+def _parts(bodies, elems, flex) -> Parts:
+    """:class:`Parts` covering the bodies ``bodies``, elements ``elems`` and coordinates with
+    ``flex`` set, and no item of any other kind."""
+    sel = {"bodies": bodies, "elements": elems}
+    counts = [len(sel.get(k, ())) for k in KIND_NAMES]
+    off = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    idx = np.concatenate([np.asarray(sel.get(k, ()), dtype=np.int64) for k in KIND_NAMES])
+    return Parts(off, idx, flex)
 
+
+def test_part_residual_equals_the_residual_over_the_same_parts(system, state):
+    """The residual over a pseudo-load's few parts (on reused scratch) gives, bit for bit, the
+    residual over every part of the same data with everything outside those parts zeroed
+    (the premise of the linear path of the pseudo-loads: the data a variable does not change
+    have zero derivative), leaves its scratch zero, and so does not leak one call's products
+    into the next (a fresh scratch gives the same numbers). Parts as a design variable forms
+    them: some elements, their bodies and all their coordinates, and the masked coordinates
+    of a body whose invariants changed; complex data as in a complex step (a real state)."""
     q, v, a = state
-    S = ml.compile.kernel_arrays(system, complex)
-    S = S._replace(elem_K=S.elem_K * (1 + 1e-3j), elem_M=S.elem_M * (1 - 2e-3j),
-                   flex_IS=S.flex_IS * (1 + 1e-3j), gravity=GRAVITY.astype(complex))
-    R0 = np.zeros(system.n_dof, dtype=complex)
-    W = part_scratch(S, q, R0)
+    S = arrays(system, complex)
+    S = S._replace(elements=S.elements._replace(K=S.elements.K * (1 + 1e-3j),
+                                                M=S.elements.M * (1 - 2e-3j)),
+                   flex=S.flex._replace(IS=S.flex.IS * (1 + 1e-3j)))
+    B, Fx, E = S.bodies, S.flex, S.elements
+    W = ffrf.scratch(system.count("flex"), q.astype(complex))
     rng = np.random.default_rng(7)
-    n_elem, n_flex = S.elem_fdof.shape[0], S.flex_dof.shape[0]
-    empty = np.zeros(0, np.int64)
+    n_elem, n_flex, n_body = E.fdof.shape[0], Fx.dof.shape[0], B.ref.shape[0]
+    owner = np.repeat(np.arange(n_body), B.flex[:, 1] - B.flex[:, 0])
     for trial in range(12):
         elems = np.sort(rng.choice(n_elem, size=1 + trial % 3, replace=False))
         flex = np.zeros(n_flex, dtype=bool)
-        fd = S.elem_fdof[elems].ravel()
+        fd = E.fdof[elems].ravel()
         flex[fd[fd >= 0]] = True
         flex[rng.random(n_flex) < 0.2] = True
-        owner = np.repeat(np.arange(S.body_ref.shape[0]), np.diff(S.flex_off))
-        bodies = np.unique(np.concatenate([S.elem_body[elems], owner[flex], [0]]))
-        parts = Parts(bodies.astype(np.int64), elems.astype(np.int64), flex, empty, empty,
-                      empty, empty)
-        R_full = np.zeros(system.n_dof, dtype=complex)
-        R_part = np.zeros(system.n_dof, dtype=complex)
-        ffrf.body_residual(S, q, v, a, 0.7, 0.9, parts, R_full)
-        ffrf.body_part_residual(S, q, v, a, 0.7, 0.9, parts, R_part, W)
-        assert np.array_equal(R_part, R_full), trial
+        bodies = np.unique(np.concatenate([E.body[elems], owner[flex], [0]]))
+        R_part = body_residual(system, S, q, v, a, 0.7, 0.9, _parts(bodies, elems, flex), W)
         assert not W.q.any() and not W.p.any(), trial
+        R_fresh = body_residual(system, S, q, v, a, 0.7, 0.9, _parts(bodies, elems, flex))
+        assert np.array_equal(R_part, R_fresh), trial
+        # the reference: every part, with the linear data outside the parts zeroed
+        out_b = np.setdiff1d(np.arange(n_body), bodies)
+        out_e = np.setdiff1d(np.arange(n_elem), elems)
+        Z = S._replace(
+            bodies=B._replace(scal=np.where(np.isin(np.arange(n_body), out_b)[:, None], 0,
+                                            B.scal)),
+            flex=Fx._replace(IS=np.where(flex[:, None], Fx.IS, 0), I0S=np.where(flex, Fx.I0S, 0),
+                             I0IS=np.where(flex, Fx.I0IS, 0)),
+            elements=E._replace(**{f: np.where(np.isin(np.arange(n_elem), out_e)[:, None, None],
+                                               0, getattr(E, f)) for f in ("M", "St", "K")}))
+        R_full = body_residual(system, Z, q, v, a, 0.7, 0.9)
+        assert np.array_equal(R_part, R_full), trial
+        assert np.abs(R_part).max() > 1e-3 * np.abs(body_residual(system, S, q, v, a, 0.7,
+                                                                   0.9)).max(), trial

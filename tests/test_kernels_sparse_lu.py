@@ -115,8 +115,9 @@ def test_a_pivot_below_the_threshold_is_reported():
 def test_step_factorization_renews_the_row_order_when_a_pivot_fails():
     """StepFactorization: SuperLU factors the first matrix (fill-reducing order) and the
     second (row order), the compiled refactorization every later one while the pivots pass the
-    threshold; a matrix that makes a pivot fail goes back to SuperLU for a new row order,
-    which the next matrix reuses. Every solution is exact to round-off."""
+    threshold; a matrix that makes a pivot fail goes back to SuperLU for a new row order and
+    is refactored with it (a compiled factor, which the sensitivity methods solve with), and
+    the next matrix reuses that order. Every solution is exact to round-off."""
     A = _saddle_point()
     n = A.shape[0]
     fac = factorization.StepFactorization(A.indices.astype(np.int64),
@@ -126,21 +127,22 @@ def test_step_factorization_renews_the_row_order_when_a_pivot_fails():
     B = rng.normal(size=(n, 4)) + 1j * rng.normal(size=(n, 4))
 
     def check(data, compiled, orders):
-        """``compiled``: the refactorization (a factor of a compiled group) or SuperLU's own;
-        ``solve`` and ``solve_transposed`` both exact to round-off."""
+        """``compiled``: the refactorization or SuperLU's own; ``solve`` and
+        ``solve_transposed`` both exact to round-off."""
         lu = fac(data)
-        assert (lu.group is not None) == compiled and fac.n_orders == orders
+        assert lu.compiled == compiled and fac.n_orders == orders
         Ad = sp.csc_matrix((data, A.indices, A.indptr), shape=(n, n)).toarray()
         np.testing.assert_allclose(lu.solve(b), np.linalg.solve(Ad, b), rtol=1e-9, atol=1e-12)
         # several right-hand sides, complex ones through a real factorization
         np.testing.assert_allclose(lu.solve(B), np.linalg.solve(Ad, B), rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(lu.solve_transposed(B), np.linalg.solve(Ad.T, B), rtol=1e-9,
                                    atol=1e-12)
+        return lu
 
     superlu, compiled = False, True
     check(A.data, superlu, 0)
     check(A.data * 1.01, superlu, 1)
-    check(A.data * 1.02, compiled, 1)  # a uniform scaling keeps every ratio
+    first_order = check(A.data * 1.02, compiled, 1).order  # a uniform scaling keeps every ratio
     # make the first pivot tiny: column q[0] of A is factored first, its pivot is the entry
     # in the row that SuperLU's row order put first
     q = fac._order[0]
@@ -151,8 +153,10 @@ def test_step_factorization_renews_the_row_order_when_a_pivot_fails():
     for k in entries:
         if A.indices[k] == i0:
             changed[k] *= 1e-6
-    check(changed, superlu, 2)
-    check(changed * 1.01, compiled, 2)
+    renewed = check(changed, compiled, 2).order
+    assert renewed is not first_order and renewed is fac.row_order
+    assert not np.array_equal(renewed.perm_r, first_order.perm_r)  # really another row order
+    assert check(changed * 1.01, compiled, 2).order is renewed
 
 
 def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch):
@@ -169,16 +173,19 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
     (the normwise backward error, what a stable LU guarantees, is ~1e-23)."""
     import morphlab as ml
     from morphlab import morphing as mo
+    from morphlab.compile.system import time_table
     from morphlab.solve import superlu
     from morphlab.solve.settings import Settings
     from morphlab.solve.stepper import Stepper
 
     # the paper's single-frame skin: the matrix whose fill this test measured
     system = ml.compile_model(mo.build(mo.DEFAULTS, n_elements=2000, skin="paper"))
-    st = Stepper.dynamic(system, Settings(**mo.SETTINGS, dense_max=0))
-    p = st.problem(system.q0, system.v0, st.init_coef, None, st.time_arrays(0.0), 0.0, 0)
-    data = np.zeros(system.nnz)
-    p.fill(np.zeros(st.n), data)
+    st = Stepper.dynamic(system, Settings.of(mo.SETTINGS, dense_max=0),
+                         time_table(system, np.zeros(1)))
+    p = st.problem(system.q0, system.v0, st.init_coef, None, st.T, 0, 0.0, 0)
+    fill = np.zeros((1, system.nnz))
+    p.fill(np.zeros(st.n), fill, st.newton.W)
+    data = fill[0]
     A = factorization.csc_matrix(data, system.indices, system.indptr, system.n)
     fills = []
     for scaled in (True, False):
@@ -194,12 +201,11 @@ def test_scaling_keeps_the_fill_of_the_initial_matrix_of_a_fine_skin(monkeypatch
     assert fills[0] < 4.0 < 10.0 < fills[1], fills
 
 
-def test_kept_factors_stack_without_a_copy_and_solve_as_before(monkeypatch):
-    """Compiled refactorizations in a row take consecutive rows of one chunk, so
-    ``stacked_arrays`` returns views of it (no copy) holding the same values as ``np.stack``
-    of the factors; factors that are not consecutive rows (one skipped, or a new chunk
-    started: a chunk of three factors here) are copied, with the same values. Each factor
-    still solves its own matrix after later ones are formed (exact to round-off)."""
+def test_kept_factors_take_rows_of_chunks_and_solve_as_before(monkeypatch):
+    """Compiled refactorizations in a row take consecutive rows of one chunk of factor values
+    (a chunk of three factors here: rows 0, 1, 2 of three chunks for seven factors), each
+    factor its own row, and each still solves its own matrix after later ones are formed
+    (exact to round-off): a later factorization never writes into a kept factor."""
     A = _saddle_point()
     n = A.shape[0]
     fac = factorization.StepFactorization(A.indices.astype(np.int64),
@@ -212,20 +218,15 @@ def test_kept_factors_stack_without_a_copy_and_solve_as_before(monkeypatch):
     per._chunk = None
     scales = 1.02 + 0.01 * np.arange(7)
     lus = [fac(A.data * s) for s in scales]
-    assert all(lu.group is per for lu in lus)
-    assert len({lu.chunk for lu in lus}) == 3  # 3 + 3 + 1 rows
-
-    def check(factors, shared):
-        stacks = factorization.stacked_arrays(factors)
-        for k, name in ((2, "Lx"), (3, "Ux"), (4, "Ud")):
-            np.testing.assert_array_equal(stacks[k], np.stack([getattr(f, name)
-                                                               for f in factors]))
-            assert np.shares_memory(stacks[k], getattr(factors[0], name)) == shared
-
-    check(lus[0:3], True)
-    check(lus[1:3], True)
-    check(lus[2:4], False)  # two chunks
-    check([lus[0], lus[2]], False)  # not consecutive
+    assert all(lu.compiled and lu.order is per for lu in lus)
+    assert [lu.row for lu in lus] == [0, 1, 2, 0, 1, 2, 0]
+    chunks = [lu.Lx.base for lu in lus]
+    assert len({id(c) for c in chunks}) == 3  # 3 + 3 + 1 rows
+    for k, lu in enumerate(lus):
+        for name in ("Lx", "Ux", "Ud"):
+            a = getattr(lu, name)
+            np.testing.assert_array_equal(a, a.base[lu.row])  # row ``row`` of its chunk
+        assert (lu.Lx.base is lus[k - 1].Lx.base) == (k % 3 != 0)
     rng = np.random.default_rng(5)
     b = rng.normal(size=n)
     for s, lu in zip(scales, lus):

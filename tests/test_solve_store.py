@@ -31,24 +31,37 @@ def test_kept_histories_are_those_of_the_full_run():
         some.energy  # noqa: B018
 
 
-@pytest.mark.parametrize("chunk", [5, 8, 64])
-def test_violations_without_the_velocities_are_those_of_the_full_run(monkeypatch, chunk):
-    """A run that keeps only ``q`` evaluates its constraint violations from a buffer of the
-    last ``VIOLATION_CHUNK`` steps; they must be the full run's to the bit (same kernel, same
-    states) whether the 21 recorded times fill the buffer several times with a remainder (5),
-    exactly (8 for an interrupt after step 7) or never (64), and for a run interrupted after
-    step 7 (8 times recorded) as well."""
+# how the steps are run: all from Python, or in compiled chunks of one step (after the first
+# chunk), of the default size (~0.1 s of steps) or of the whole rest of the run
+CHUNKS = {"python": None, "one-step chunks": 0.0, "default chunks": "default",
+          "one chunk": 1e3}
+
+
+@pytest.mark.parametrize("chunks", list(CHUNKS))
+def test_violations_without_the_velocities_are_those_of_the_full_run(monkeypatch, chunks):
+    """A run that keeps only ``q`` holds the velocities in a buffer of the last two levels and
+    evaluates each step's constraint violations as it goes; they must be the full run's to the
+    bit (same kernel, same states) whether the steps run from Python or in compiled chunks
+    (whose boundaries the two-level buffer crosses), and for an interrupted run as well."""
+    kw = dict(RUN)
+    if CHUNKS[chunks] is None:
+        kw["compiled_newton"] = False
+    elif CHUNKS[chunks] != "default":
+        monkeypatch.setattr(ml.solve.timeloop, "CHUNK_SECONDS", CHUNKS[chunks])
     full = ml.simulate(flexible_mechanism(), **RUN)
     assert full.constraint_violation.max() > 0.0 and full.velocity_violation.max() > 0.0
-    monkeypatch.setattr(ml.solve.store, "VIOLATION_CHUNK", chunk)
-    some = ml.simulate(flexible_mechanism(), store=("q",), **RUN)
+    some = ml.simulate(flexible_mechanism(), store=("q",), **kw)
+    np.testing.assert_array_equal(some.q, full.q)
     np.testing.assert_array_equal(some.constraint_violation, full.constraint_violation)
     np.testing.assert_array_equal(some.velocity_violation, full.velocity_violation)
+    stop, stopped = _stop_from(7)
     with pytest.raises(ml.Interrupted) as err:
-        ml.simulate(flexible_mechanism(), store=("q",), progress=_stop_at(7), **RUN)
+        ml.simulate(flexible_mechanism(), store=("q",), progress=stop, **kw)
     part = err.value.result
-    np.testing.assert_array_equal(part.constraint_violation, full.constraint_violation[:8])
-    np.testing.assert_array_equal(part.velocity_violation, full.velocity_violation[:8])
+    k = stopped[0]
+    assert 7 <= k < RUN["t_end"] / RUN["dt"] and part.n_t == k + 1
+    np.testing.assert_array_equal(part.constraint_violation, full.constraint_violation[:k + 1])
+    np.testing.assert_array_equal(part.velocity_violation, full.velocity_violation[:k + 1])
 
 
 def test_memory_mapped_histories(tmp_path):
@@ -67,34 +80,45 @@ def test_a_run_that_cannot_fit_is_refused_before_it_starts():
     assert isinstance(err.value, MemoryError)
 
 
-def _stop_at(k):
+def _stop_from(k, action=None):
+    """A progress callback that interrupts (raises KeyboardInterrupt, or calls ``action``) at
+    the first step ``>= k`` it is told of, and the list that receives that step. Progress is
+    reported after each step solved from Python and at the end of each compiled chunk of
+    steps, so the step it stops at is the first report from ``k`` on."""
+    stopped = []
+
     def callback(n, n_steps, t):
-        if n == k:
-            raise KeyboardInterrupt
-    return callback
+        if n >= k and not stopped:
+            stopped.append(n)
+            if action is None:
+                raise KeyboardInterrupt
+            action()
+    return callback, stopped
 
 
 @pytest.mark.parametrize("how", ["progress", "observer", "signal"])
 def test_an_interrupt_carries_the_converged_steps(how):
     """From a progress callback or an observer (a KeyboardInterrupt raised in them) and from a
     real SIGINT to this process (its handler only flags the interrupt; the loop stops between
-    steps): an Interrupted, which is a KeyboardInterrupt, with the steps up to that point."""
-    k = 7
+    steps or chunks of steps): an Interrupted, which is a KeyboardInterrupt, with the steps
+    up to the one the callback was told of (an observer: every step; progress: the first
+    report from step 7 on)."""
     kw = dict(RUN)
     if how == "progress":
-        kw["progress"] = _stop_at(k)
+        kw["progress"], stopped = _stop_from(7)
     elif how == "observer":
+        stopped = [7]
+
         def observer(info):
-            if info.n == k:
+            if info.n == stopped[0]:
                 raise KeyboardInterrupt
         kw["observer"] = observer
     else:
-        def send(n, n_steps, t):
-            if n == k:
-                os.kill(os.getpid(), signal.SIGINT)
-        kw["progress"] = send
+        kw["progress"], stopped = _stop_from(7, lambda: os.kill(os.getpid(), signal.SIGINT))
     with pytest.raises(KeyboardInterrupt) as err:
         ml.simulate(flexible_mechanism(), **kw)
+    k = stopped[0]
+    assert 7 <= k < RUN["t_end"] / RUN["dt"]  # stopped before the end
     e = err.value
     assert isinstance(e, ml.Interrupted)
     assert e.result.status == "interrupted" and e.step == k and e.result.n_t == k + 1
@@ -110,8 +134,10 @@ def test_sigint_from_outside_during_compiled_steps_is_a_clean_interrupt(tmp_path
     script.write_text(
         "import sys, morphlab as ml\n"
         "from morphlab import morphing as mo\n"
+        "said = []\n"
         "def looping(n, n_steps, t):\n"
-        "    if n == 20:\n"
+        "    if n >= 20 and not said:\n"  # progress comes at the end of each compiled chunk
+        "        said.append(n)\n"
         "        print('looping', flush=True)\n"
         "try:\n"
         "    ml.simulate(mo.build(mo.DEFAULTS, n_elements=300), t_end=60.0, dt=5e-4,\n"

@@ -39,12 +39,13 @@ def one_beam(nodes, reference_node=0):
 
 def flex_matrices(system):
     """Assembled M_ff, S~, K_ff (n_flex, n_flex) of the (only) beam from the element arrays."""
-    nf = system.flex_dof.size
+    El = system.arrays.elements
+    nf = system.count("flex")
     out = [np.zeros((nf, nf)) for _ in range(3)]
-    for e in range(system.elem_fdof.shape[0]):
-        fd = system.elem_fdof[e]
+    for e in range(El.fdof.shape[0]):
+        fd = El.fdof[e]
         k = fd >= 0
-        for A, Ae in zip(out, (system.elem_M[e], system.elem_St[e], system.elem_K[e])):
+        for A, Ae in zip(out, (El.M[e], El.St[e], El.K[e])):
             A[np.ix_(fd[k], fd[k])] += Ae[np.ix_(k, k)]
     return out
 
@@ -84,9 +85,10 @@ def check_dilation_identities(system):
     I_S^T q_d = I_u, I_0S.q_d = I_00, I_0ĨS.q_d = 0, M_ff q_d = I_0S, S~ q_d = I_0ĨS, and
     the strain energy of a unit strain, q_d^T K q_d = EA * (total length)."""
     info = system.body("beam")
-    m, Iux, Iuy, I00 = system.body_scal[0]
-    where = {int(g): k for k, g in enumerate(system.flex_dof)}
-    qd = np.zeros(system.flex_dof.size)
+    Fx = system.arrays.flex
+    m, Iux, Iuy, I00 = system.arrays.bodies.scal[0]
+    where = {int(g): k for k, g in enumerate(Fx.dof)}
+    qd = np.zeros(Fx.dof.size)
     for k, X in enumerate(info.X):
         for j, val in enumerate((X[0], X[1], 0.0)):
             if info.node_dofs[k, j] >= 0:
@@ -95,11 +97,11 @@ def check_dilation_identities(system):
     size = np.max(np.abs(info.X))
     # every identity is an exact polynomial integral: round-off relative to its scale
     tol = 1e-13
-    np.testing.assert_allclose(system.flex_IS.T @ qd, [Iux, Iuy], rtol=0, atol=tol * m * size)
-    np.testing.assert_allclose(system.flex_I0S @ qd, I00, rtol=tol)
-    assert abs(system.flex_I0IS @ qd) < tol * I00
-    np.testing.assert_allclose(Mff @ qd, system.flex_I0S, rtol=0, atol=tol * m * size**2)
-    np.testing.assert_allclose(St @ qd, system.flex_I0IS, rtol=0, atol=tol * m * size**2)
+    np.testing.assert_allclose(Fx.IS.T @ qd, [Iux, Iuy], rtol=0, atol=tol * m * size)
+    np.testing.assert_allclose(Fx.I0S @ qd, I00, rtol=tol)
+    assert abs(Fx.I0IS @ qd) < tol * I00
+    np.testing.assert_allclose(Mff @ qd, Fx.I0S, rtol=0, atol=tol * m * size**2)
+    np.testing.assert_allclose(St @ qd, Fx.I0IS, rtol=0, atol=tol * m * size**2)
     np.testing.assert_allclose(qd @ Mff @ qd, I00, rtol=tol)
     length = np.sum(np.hypot(*np.diff(info.X, axis=0).T))
     np.testing.assert_allclose(qd @ K @ qd, E_AL * AREA * length, rtol=tol)
@@ -116,10 +118,10 @@ def test_straight_beam_invariants(ref):
     expected = [m, m * (LENGTH / 2 - xr), 0.0, RHOA * ((LENGTH - xr) ** 3 + xr**3) / 3]
     # exact integrals of polynomials; round-off only (the beam is inclined in the global frame,
     # so the body-frame node coordinates carry ~1e-14 relative error)
-    np.testing.assert_allclose(system.body_scal[0], expected, rtol=1e-13,
+    np.testing.assert_allclose(system.arrays.bodies.scal[0], expected, rtol=1e-13,
                                atol=1e-13 * m * LENGTH)
     if ref == 0:  # the textbook values about the end
-        np.testing.assert_allclose(system.body_scal[0, [0, 1, 3]],
+        np.testing.assert_allclose(system.arrays.bodies.scal[0, [0, 1, 3]],
                                    [RHOA * LENGTH, RHOA * LENGTH**2 / 2, RHOA * LENGTH**3 / 3],
                                    rtol=1e-13)
     check_dilation_identities(system)
@@ -132,7 +134,7 @@ def test_half_circle_polyline_invariants(ref):
     system = ml.compile_model(one_beam(X, ref)[0])
     m, Iu, I00 = polyline_invariants(X - X[r])
     Iu_body = rotate(Iu, -body_frame_angle(X, r))
-    got = system.body_scal[0]
+    got = system.arrays.bodies.scal[0]
     # the kernel integrates each straight element exactly: round-off of 24 terms
     np.testing.assert_allclose(got[0], m, rtol=1e-13)
     np.testing.assert_allclose(got[1:3], Iu_body, rtol=0, atol=1e-13 * m * 100.0)
@@ -255,7 +257,7 @@ def clamped_free_frequencies(n_elem):
     system = ml.compile_model(one_beam(straight_nodes(n_elem, LENGTH))[0])
     Mff, _, K = flex_matrices(system)
     w2, V = eigh(K, Mff)
-    names = [system.dof_names[g] for g in system.flex_dof]
+    names = [system.dof_names[g] for g in system.arrays.flex.dof]
     is_u = np.array([n.endswith(".u") for n in names])
     axial_share = np.sum(V[is_u] ** 2, axis=0) / np.sum(V**2, axis=0)
     # the straight beam decouples exactly: each mode is purely axial or purely bending

@@ -187,13 +187,14 @@ def kicked_cantilever(t1):
 
 def flex_matrices(system):
     """Assembled M_ff, K_ff (n_f, n_f) of the only beam, from the element arrays."""
-    nf = system.flex_dof.size
+    El = system.arrays.elements
+    nf = system.count("flex")
     M, K = np.zeros((nf, nf)), np.zeros((nf, nf))
-    for e in range(system.elem_fdof.shape[0]):
-        fd = system.elem_fdof[e]
+    for e in range(El.fdof.shape[0]):
+        fd = El.fdof[e]
         k = fd >= 0
-        M[np.ix_(fd[k], fd[k])] += system.elem_M[e][np.ix_(k, k)]
-        K[np.ix_(fd[k], fd[k])] += system.elem_K[e][np.ix_(k, k)]
+        M[np.ix_(fd[k], fd[k])] += El.M[e][np.ix_(k, k)]
+        K[np.ix_(fd[k], fd[k])] += El.K[e][np.ix_(k, k)]
     return M, K
 
 
@@ -216,7 +217,7 @@ def test_cantilever_free_vibration_at_first_eigenfrequency():
     res = ml.simulate(system, t_end=6 * T1, dt=T1 / n, rho_inf=1.0)
     # modal coordinate eta_1 = phi1^T M q_f: the other modes are M-orthogonal to phi1, so eta_1
     # is a pure first-mode signal (the clamped beam's equations are linear: theta = const)
-    fd = system.flex_dof
+    fd = system.arrays.flex.dof
     eta, etad = res.q[:, fd] @ M @ phi1, res.v[:, fd] @ M @ phi1
     free = res.t > T1 / 2  # after the pulse
     c = zero_crossings(res.t[free], eta[free], etad[free])
@@ -275,8 +276,8 @@ def test_newton_order_check_detects_an_inexact_jacobian(monkeypatch):
 
     fill = StepProblem.fill
 
-    def off_by_one_percent(self, z, data):
-        fill(self, z, data)
+    def off_by_one_percent(self, z, data, W):
+        fill(self, z, data, W)
         data *= 1.01
 
     monkeypatch.setattr(StepProblem, "fill", off_by_one_percent)
