@@ -173,6 +173,7 @@ class _Loop:
         self.logged = np.zeros(t.size, dtype=np.int64)  # Newton log rows of each step
         self.t_wall = _time.perf_counter()
         self.per_step = None  # measured wall time of a compiled step [s]
+        self.python_next = False  # the last chunk stopped at a step Python must solve
 
     def make_result(self, status: str, message: str) -> Result:
         fields = self.hist.result_fields()
@@ -213,6 +214,8 @@ class _Loop:
                         n = self.chunk(n)
                         if n > self.n_steps:
                             break
+                        if not self.python_next:  # on in chunks (the interrupt checked first)
+                            continue
                     prev = hist.state(n - 1)
                     out = stepper.advance(prev, float(t[n]), n, self.max_halvings,
                                           self.reductions)
@@ -272,6 +275,7 @@ class _Loop:
             self.hook.after_chunk(n, k)
         if self.report is not None and k > n:
             self.report(k - 1, self.n_steps, float(self.t[k - 1]))
+        self.python_next = status != CONVERGED  # step k needs Python (a new row order...)
         if status == CONVERGED or status == PIVOT_REFUSED:
             if status == PIVOT_REFUSED:
                 nw.n_factorizations += it - 1
