@@ -1,7 +1,7 @@
-"""The compiled kernels' runtime: where Numba caches them, and what a user is told while they
-compile. (The kernels themselves are in :mod:`morphlab.kernels`; this stage ranks beside them:
-it imports nothing of the library but the kernels.)"""
+"""The JIT runtime of the kernels: where Numba caches them (:mod:`.cache`) and what the user
+sees while they compile (:mod:`.progress`)."""
 
-from .cache import announce_compilation, kernel_cache_dir, kernels_cached
+from .cache import kernel_cache_dir, kernels_cached
+from .progress import ESTIMATES, CompileProgress
 
-__all__ = ["announce_compilation", "kernel_cache_dir", "kernels_cached"]
+__all__ = ["CompileProgress", "ESTIMATES", "kernel_cache_dir", "kernels_cached"]

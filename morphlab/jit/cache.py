@@ -9,11 +9,8 @@ about a second.
 from __future__ import annotations
 
 import os
-import sys
 
 from ..kernels.steps import run_steps
-
-_announced = False
 
 
 def kernel_cache_dir() -> str | None:
@@ -31,13 +28,3 @@ def kernels_cached() -> bool:
     except AttributeError:  # pragma: no cover - another Numba layout: assume cached
         return True
     return bool(run_steps.signatures) or os.path.exists(path)
-
-
-def announce_compilation(system=None) -> None:
-    """Print, once per process, that the kernels are being compiled (a cold cache)."""
-    global _announced
-    if _announced or kernels_cached():
-        return
-    _announced = True
-    print(f"morphlab: compiling the numerical kernels once; they are cached in "
-          f"{kernel_cache_dir()} for later runs", file=sys.stderr, flush=True)

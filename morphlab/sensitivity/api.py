@@ -22,6 +22,7 @@ import numpy as np
 
 from ..compile import compile_model
 from ..errors import Interrupted, MorphlabError, ResponseError, SensitivityError
+from ..jit.progress import CompileProgress
 from ..results.result import Result
 from ..solve.settings import Settings
 from .designs import CS_STEP, call_build
@@ -214,7 +215,8 @@ def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
     steps = strategy.steps(setup) if isinstance(strategy, FiniteDifference) else {}
     t_setup = _time.perf_counter() - t_start
     try:
-        run = strategy.run(setup)
+        with CompileProgress(strategy.name):
+            run = strategy.run(setup)
     except KeyboardInterrupt as err:
         partial = SensitivityResult(method=strategy.name, variables=names,
                                     result=getattr(err, "result", None), values={},

@@ -11,6 +11,7 @@ from ..compile import System, compile_model
 from ..compile.checks import check_units
 from ..compile.system import time_table
 from ..errors import ConvergenceError, ModelError, SingularMatrixError, SolverError
+from ..jit.progress import CompileProgress
 from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
@@ -74,6 +75,12 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     displacement from the previous equilibrium (``beta h² = 1``).
     """
     st = StaticSettings.of(settings, **options)
+    with CompileProgress("statics"):  # a notice and progress while kernels compile
+        return _static(model, st, q_start)
+
+
+def _static(model, st: StaticSettings, q_start) -> Result:
+    """:func:`static` with its settings normalized."""
     _check(st)
     kinematic_tol = check_kinematic_tol(st.kinematic_tol)
     system = model if isinstance(model, System) else compile_model(model)

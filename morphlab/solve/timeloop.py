@@ -25,7 +25,7 @@ from ..compile import System, compile_model
 from ..compile.checks import check_units
 from ..compile.system import time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
-from ..jit import announce_compilation
+from ..jit.progress import CompileProgress
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.steps import run_steps
 from ..model import Model
@@ -134,7 +134,6 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     """
     _check_options(settings, observer, hook, max_halvings)
     check_units(system, settings.t_end)  # warns (or raises) before anything runs
-    announce_compilation(system)
     n_steps = settings.n_steps
     check_memory(system, n_steps + 1, store, memmap)
     t = settings.t_start + settings.h * np.arange(n_steps + 1)
@@ -142,11 +141,12 @@ def integrate(system: System, settings: Settings, *, observer: Callable | None =
     T, failure = _time_table(system, settings, t, hist)
     if failure is not None:  # run the steps before the failing time, then raise it
         n_steps = failure.step - 1
-    stepper = Stepper.dynamic(system, settings, T, scale=scale, polish=polish,
-                              rows=hook.rows if hook is not None else 1)
-    loop = _Loop(system, settings, stepper, hist, T, t, n_steps, observer, hook, progress,
-                 max_halvings, q0, v0)
-    result = loop.run()
+    with CompileProgress("time loop"):  # a notice and progress while kernels compile
+        stepper = Stepper.dynamic(system, settings, T, scale=scale, polish=polish,
+                                  rows=hook.rows if hook is not None else 1)
+        loop = _Loop(system, settings, stepper, hist, T, t, n_steps, observer, hook,
+                     progress, max_halvings, q0, v0)
+        result = loop.run()
     if failure is not None:  # the steps before the profile failed: a failed run's result
         result.status, result.message = "failed", str(failure)
         failure.result = result

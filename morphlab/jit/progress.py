@@ -1,0 +1,110 @@
+"""What the user sees while the kernels compile: a notice at the first compilation, then a
+line of progress every few seconds, and the total at the end.
+
+Numba compiles a kernel the first time it meets a new kind of model (a new set of item kinds,
+dense or sparse step matrices, real or complex numbers) and caches the machine code on disk;
+later processes load it without compiling. Compilation is detected exactly, from Numba's
+compile events (a load from the cache sends none), so nothing is printed when the kernels are
+cached, and a long compilation is never silent for more than :attr:`CompileProgress.every`
+seconds.
+
+The estimates are measured first-use times on the reference machine (2 cores, empty cache;
+``python -m morphlab.bench --cases compile``, BENCHMARKS.md): CPU seconds for the quickstart's
+time loop and for each sensitivity method on top of it.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+from numba.core import event
+
+#: CPU seconds of a first use on the reference machine (BENCHMARKS.md, case compile): the
+#: time loop of a model of a new kind, and each sensitivity method on top of it.
+ESTIMATES = {"time loop": 15.0, "statics": 15.0, "direct": 20.0, "direct-fd": 24.0,
+             "adjoint": 27.0, "complex-step": 15.0}
+
+_active: list = []  # the reporter of the outermost run (nested runs report through it)
+
+
+class CompileProgress(event.Listener):
+    """Report the compilations of morphlab's kernels during a ``with`` block.
+
+    Parameters
+    ----------
+    what : str
+        What is being compiled, for the messages (a key of :data:`ESTIMATES` gives the
+        estimate).
+    stream : file, optional
+        Where the lines go (default ``sys.stderr``).
+    every : float
+        Seconds between progress lines while compiling.
+    """
+
+    def __init__(self, what: str, stream=None, every: float = 5.0):
+        self.what = what
+        self.stream = stream
+        self.every = every
+        self.count = 0  # kernels compiled
+        self.depth = 0  # nesting of compile events in progress
+        self.current = ""
+        self.started = None  # (wall, cpu) of the first compilation
+        self._stop = threading.Event()
+        self._thread = None
+
+    # ---- the listener
+    def on_start(self, ev) -> None:
+        disp = ev.data.get("dispatcher")
+        name = getattr(getattr(disp, "py_func", None), "__qualname__", "?")
+        self.depth += 1
+        self.current = name
+        if self.started is None:
+            self.started = (time.perf_counter(), time.process_time())
+            self._notice()
+
+    def on_end(self, ev) -> None:
+        self.depth -= 1
+        self.count += 1
+
+    # ---- the messages
+    def _print(self, text: str) -> None:
+        print(f"morphlab: {text}", file=self.stream or sys.stderr, flush=True)
+
+    def _notice(self) -> None:
+        from .cache import kernel_cache_dir
+
+        estimate = ESTIMATES.get(self.what)
+        about = (f"; about {estimate:.0f} CPU-s on a 2-core reference machine"
+                 if estimate else "")
+        self._print(f"compiling the numerical kernels of the {self.what} for this kind of "
+                    f"model (first use only: cached in {kernel_cache_dir()}){about}")
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._thread.start()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(self.every):
+            wall = time.perf_counter() - self.started[0]
+            self._print(f"  ... still compiling: {self.count} kernels done, now "
+                        f"{self.current}, {wall:.0f} s")
+
+    # ---- the block
+    def __enter__(self) -> CompileProgress:
+        if _active:  # a run inside a run (a sensitivity method's primal): one report
+            return _active[0]
+        _active.append(self)
+        event.register("numba:compile", self)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not _active or _active[0] is not self:
+            return
+        _active.pop()
+        event.unregister("numba:compile", self)
+        self._stop.set()
+        if self.started is not None:
+            wall = time.perf_counter() - self.started[0]
+            cpu = time.process_time() - self.started[1]
+            self._print(f"compiled {self.count} kernels in {wall:.1f} s ({cpu:.1f} CPU-s); "
+                        "later runs load them from the cache")
