@@ -1,8 +1,11 @@
-"""Compile every kernel once (float64 and complex128) on a tiny model.
+"""Compile the kernels ahead of need.
 
-Numba caches the machine code on disk (``cache=True``), so after the first call in a fresh
-environment later processes only load it. Calling :func:`warmup` up front moves that one-off
-cost out of the first real run (and out of timed benchmarks).
+Numba compiles a kernel for each kind of model it meets (the set of item kinds, dense or
+sparse step matrices, real or complex numbers) and caches the machine code on disk
+(``cache=True``), so later processes only load it. :func:`warmup_for` runs a model's time
+loop and sensitivity methods over a few steps, which compiles exactly what the full runs of
+that model need (``morphlab warmup`` does it for the main command's model);
+:func:`warmup`, a tiny model's (the workers of a parameter study call it).
 """
 
 from __future__ import annotations
@@ -41,3 +44,48 @@ def warmup() -> None:
     resp = {"d": point_displacement("beam", (20.0, 0.0), 1)}
     for method in ("direct", "direct-fd"):
         sensitivities(_tiny_build, p, resp, t_end=0.002, dt=0.001, method=method)
+
+
+def warmup_for(build, p0: dict, responses: dict, settings, methods=("direct",),
+               steps: int = 10, report=None) -> dict:
+    """Compile what the runs of ``build(p0)`` need: its time loop and the sensitivity
+    ``methods``, run over ``steps`` time steps of ``settings`` (their kernels are those of a
+    full run: same kinds of items, same kind of step matrices). While a kernel compiles,
+    :class:`~morphlab.jit.progress.CompileProgress` reports it.
+
+    Parameters
+    ----------
+    report : callable, optional
+        Called with a line of text before each group (default ``print`` to stderr).
+
+    Returns
+    -------
+    dict
+        Wall seconds per group: ``"time loop"`` and each method's name.
+    """
+    import sys
+    import time
+
+    from .jit.progress import ESTIMATES
+    from .sensitivity.api import sensitivities
+    from .solve.settings import Settings
+    from .solve.timeloop import simulate
+
+    def say(text):
+        (report or (lambda t: print(t, file=sys.stderr, flush=True)))(text)
+
+    short = Settings.of(settings, t_end=steps * Settings.of(settings).dt)
+    groups = ["time loop", *methods]
+    total = sum(ESTIMATES.get(g, 20.0) for g in groups)
+    say(f"morphlab warmup: {', '.join(groups)} (at most about {total:.0f} CPU-s on a 2-core "
+        "reference machine when nothing is cached)")
+    seconds = {}
+    for group in groups:
+        say(f"morphlab warmup: {group}")
+        t0 = time.perf_counter()
+        if group == "time loop":
+            simulate(build(p0), settings=short)
+        else:
+            sensitivities(build, p0, responses, method=group, settings=short)
+        seconds[group] = time.perf_counter() - t0
+    return seconds
