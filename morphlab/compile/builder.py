@@ -65,9 +65,9 @@ class Table:
         (``values``, ``base`` and ``name`` stacked: one entry per row; a ``name`` string is
         shared). Every design and topology field must be given; returns the index of the
         first row."""
-        missing = sorted(set(self.columns) - set(values))
-        extra = sorted(set(values) - set(self.columns))
-        if missing or extra:
+        if values.keys() != self.columns.keys():
+            missing = sorted(set(self.columns) - set(values))
+            extra = sorted(set(values) - set(self.columns))
             raise TypeError(f"rows of {self.kind.name!r}: missing {missing}, unknown {extra}")
         first = self.n
         rows = 1 if count is None else int(count)
@@ -195,7 +195,9 @@ class Builder:
         u0 = np.zeros((2, 3), dtype=self.dtype)
         u0[0, :2], u0[1, :2], u0[1, 2] = pa[1], pb[1], coef
         con = len(self.con_names)
-        values = dict(u0=u0, con=con, dofs=np.stack([pa[0], pb[0]]))
+        dofs = np.empty((2, 6), dtype=np.int64)
+        dofs[0], dofs[1] = pa[0], pb[0]
+        values = dict(u0=u0, con=con, dofs=dofs)
         if kind == "rows":
             values["kind"] = row_kind
         item = self.tables[kind].add(f"{joint.name}.{label}", base=c0, profile=profile,

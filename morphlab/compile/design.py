@@ -76,11 +76,15 @@ def views(arrays: SystemArrays, D: np.ndarray, fields=None) -> SystemArrays:
 
 
 def owners(arrays: SystemArrays, positions: np.ndarray) -> list[tuple]:
-    """``(kind, field, item)`` of each of ``positions`` of the flat vector."""
+    """``(kind, field, items)`` of the slots that hold ``positions`` of the flat vector:
+    one entry per slot touched, ``items`` the distinct items (int64, sorted) of it."""
     slots = layout(arrays)
     starts = np.array([s.start for s in slots])
+    pos = np.asarray(positions, dtype=np.int64)
+    which = np.searchsorted(starts, pos, side="right") - 1
     out = []
-    for p in np.asarray(positions, dtype=np.int64):
-        s = slots[int(np.searchsorted(starts, p, side="right")) - 1]
-        out.append((s.kind, s.field, int((p - s.start) // s.size)))
+    for j in np.unique(which):
+        s = slots[int(j)]
+        items = np.unique((pos[which == j] - s.start) // s.size)
+        out.append((s.kind, s.field, items))
     return out

@@ -162,13 +162,13 @@ def _items(sys0: System, ch: Change) -> tuple[dict, dict, set]:
     linear_fields = _linear_fields()
     items: dict = {}
     linear: dict = {}
-    for kind, field, item in owners(sys0.arrays, ch.positions):
+    for kind, field, rows in owners(sys0.arrays, ch.positions):
         if kind is None:  # the gravity: every body and coordinate, along the perturbed path
             for k in ("bodies", "flex", "elements"):
                 items.setdefault(k, set()).update(range(sys0.count(k)))
                 linear[k] = False
             continue
-        items.setdefault(kind, set()).add(item)
+        items.setdefault(kind, set()).update(rows.tolist())
         linear[kind] = linear.get(kind, True) and (kind, field) in linear_fields
     if ch.time is not None:
         T0 = ch.time
