@@ -214,3 +214,22 @@ def _element_arrays(body: Beam, specs: list, dt) -> list:
         out.append((scal.sum(axis=0), *rest))
         k += n
     return out
+
+
+def loaded_elements(b: Builder, beam: Beam, elements):
+    """For each element ``k`` of ``elements`` of ``beam``: ``(k, ref (3,), X1, X2, dofs
+    (6,))``, the DOFs of the frame that holds it, its end nodes in that frame and its DOFs
+    (the element loads: line loads, pressures)."""
+    info = b.bodies[beam.name]
+    E, B = b.table("elements"), b.table("bodies")
+    elem_body = np.concatenate(E.columns["body"])
+    elem_dofs = np.concatenate(E.columns["dofs"])
+    body_ref = np.concatenate(B.columns["ref"])
+    nodes = np.asarray(beam.nodes)
+    for k in elements:
+        e = info.elements.start + int(k)
+        ref = body_ref[elem_body[e]]
+        origin = np.array([b.q0[ref[0]], b.q0[ref[1]]])
+        At = rotation(b.q0[ref[2]]).T
+        yield (int(k), ref, At @ (nodes[k] - origin), At @ (nodes[k + 1] - origin),
+               elem_dofs[e])

@@ -9,7 +9,7 @@ from ..errors import ModelError
 from ..kernels.forces import SPRING_ANGLE, SPRING_LENGTH
 from ..model import Ground, RigidBody
 from ..model.forces import LineLoad, RotationalSpring, Spring
-from .bodies import rotation
+from .bodies import loaded_elements
 from .builder import Builder, compiles
 
 
@@ -70,18 +70,7 @@ def line_integrals(X1, X2):
 def compile_line_load(ld: LineLoad, b: Builder) -> None:
     """A line load: one entry of the ``lines`` table per loaded element, with the element's
     integrals in the frame that holds it."""
-    info = b.bodies[ld.beam.name]
-    E, B = b.table("elements"), b.table("bodies")
-    elem_body = np.concatenate(E.columns["body"])
-    elem_dofs = np.concatenate(E.columns["dofs"])
-    body_ref = np.concatenate(B.columns["ref"])
-    nodes = np.asarray(ld.beam.nodes)
-    for k in ld.elements:
-        e = info.elements.start + int(k)
-        ref = body_ref[elem_body[e]]
-        origin = np.array([b.q0[ref[0]], b.q0[ref[1]]])
-        At = rotation(b.q0[ref[2]]).T
-        u0, N = line_integrals(At @ (nodes[k] - origin), At @ (nodes[k + 1] - origin))
+    for _, ref, X1, X2, dofs in loaded_elements(b, ld.beam, ld.elements):
+        u0, N = line_integrals(X1, X2)
         b.table("lines").add(ld.name, base=np.asarray(ld.q), profile=ld.profile,
-                             u0=u0.astype(b.dtype), N=N.astype(b.dtype), ref=ref,
-                             dofs=elem_dofs[e])
+                             u0=u0.astype(b.dtype), N=N.astype(b.dtype), ref=ref, dofs=dofs)

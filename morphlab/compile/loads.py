@@ -8,7 +8,7 @@ from ..model import Beam, Force, Torque
 from ..model.frames import drive_node
 from ..model.pressure import FollowerForce, Pressure
 from .beam import GAUSS_W, GAUSS_XI, element_geometry, shape_matrix
-from .bodies import rotation
+from .bodies import loaded_elements
 from .builder import Builder, compiles
 
 
@@ -82,21 +82,10 @@ def pressure_integrals(X1, X2) -> dict:
 def compile_pressure(pr: Pressure, b: Builder) -> None:
     """A pressure: one entry of the ``pressures`` table per loaded element, with the
     element's integrals in the frame that holds it and ``P = p width`` at its two nodes."""
-    info = b.bodies[pr.beam.name]
-    E, B = b.table("elements"), b.table("bodies")
-    elem_body = np.concatenate(E.columns["body"])
-    elem_dofs = np.concatenate(E.columns["dofs"])
-    body_ref = np.concatenate(B.columns["ref"])
-    nodes = np.asarray(pr.beam.nodes)
-    for k in pr.elements:
-        e = info.elements.start + int(k)
-        ref = body_ref[elem_body[e]]
-        origin = np.array([b.q0[ref[0]], b.q0[ref[1]]])
-        At = rotation(b.q0[ref[2]]).T
-        integrals = pressure_integrals(At @ (nodes[k] - origin), At @ (nodes[k + 1] - origin))
+    for k, ref, X1, X2, dofs in loaded_elements(b, pr.beam, pr.elements):
+        integrals = pressure_integrals(X1, X2)
         P = np.array([pr.p[k], pr.p[k + 1]]) * pr.width[k]
-        b.table("pressures").add(pr.name, base=P, profile=pr.profile, ref=ref,
-                                 dofs=elem_dofs[e],
+        b.table("pressures").add(pr.name, base=P, profile=pr.profile, ref=ref, dofs=dofs,
                                  **{n: v.astype(b.dtype) for n, v in integrals.items()})
 
 

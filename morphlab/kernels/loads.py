@@ -94,6 +94,31 @@ def torque_residual(A, wf, T, t, k, items, R):
 
 
 @inner
+def add_point_force(dofs, ux0, uy0, q, wf, F0, F1, R):
+    """Subtract ``wf grad^T F`` of a force ``F = (F0, F1)`` (global components) at the body-
+    frame point ``(ux0, uy0)`` of the DOFs ``dofs`` (6-tuple) from the rows of ``R``."""
+    for c in range(2):
+        _, _, grad, _, _, _ = side_terms(c, dofs, ux0, uy0, q, q, q)
+        Fc = F0 if c == 0 else F1
+        for j in range(6):
+            if dofs[j] >= 0:
+                R[dofs[j]] -= wf * grad[j] * Fc
+
+
+@inner
+def add_point_stiffness(dofs, ux0, uy0, q, s, F0, F1, m, row):
+    """Add ``-s d(grad^T F)/dq`` at ``F`` held (the point's Hessian against the force) to
+    one output ``row`` (nnz,) at the positions ``m`` (6, 6) over the point's DOFs."""
+    for c in range(2):
+        h22, h23, h24 = side_hessian(c, dofs, ux0, uy0, q)
+        Fc = F0 if c == 0 else F1
+        for (j, n, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
+            p = m[j, n]
+            if p >= 0:
+                row[p] -= s * Fc * h
+
+
+@inner
 def load_residual(A, q, wf, T, t, k, items, R):
     """Subtract ``wf Q_ext`` of the point forces ``items`` from the equation rows of ``R``."""
     if A is None:  # the model has none of this kind
@@ -101,11 +126,8 @@ def load_residual(A, q, wf, T, t, k, items, R):
     for i in items:
         dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
                 A.dofs[i, 5])
-        for c in range(2):
-            _, _, grad, _, _, _ = side_terms(c, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
-            for j in range(6):
-                if dofs[j] >= 0:
-                    R[dofs[j]] -= wf * grad[j] * T.F[t, k, i, c]
+        add_point_force(dofs, A.u0[i, 0], A.u0[i, 1], q, wf, T.F[t, k, i, 0], T.F[t, k, i, 1],
+                        R)
 
 
 @inner
@@ -116,17 +138,11 @@ def load_matrix(A, q, cf, T, t, k, C, out):
     for i in range(A.dofs.shape[0]):
         dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
                 A.dofs[i, 5])
-        for c in range(2):
-            h22, h23, h24 = side_hessian(c, dofs, A.u0[i, 0], A.u0[i, 1], q)
-            for r in range(C.shape[0]):
-                cq = C[r, 1]
-                if cq == 0.0:
-                    continue
-                for (j, m, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24),
-                                  (4, 2, h24)):
-                    p = A.map[i, j, m]
-                    if p >= 0:
-                        out[r, p] -= cf * cq * T.F[t, k, i, c] * h
+        for r in range(C.shape[0]):
+            cq = C[r, 1]
+            if cq != 0.0:
+                add_point_stiffness(dofs, A.u0[i, 0], A.u0[i, 1], q, cf * cq, T.F[t, k, i, 0],
+                                    T.F[t, k, i, 1], A.map[i], out[r])
 
 
 @inner

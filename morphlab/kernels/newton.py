@@ -112,35 +112,33 @@ def _factor(data, csc, LU, piv, Lx, Ux, Ud, order, pattern, tau):
 def solve_factored(b, work, F):
     """Solve in place for ``b`` (n, m) with the factors ``F`` (``work``: (n, m) scratch, read
     by the sparse solve only)."""
-    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern)
-
-
-@inner
-def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern):
-    if pattern is None:
-        if LU is not None:
-            lu_solve(LU, piv, b)
-    else:
-        Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
-        sparse_solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale, b, b,
-                     work)
+    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, None)
 
 
 @inner
 def solve_factored_transposed(b, work, F):
     """:func:`solve_factored` for the transposed matrix (the adjoint sweep)."""
-    _solve_transposed(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern)
+    _solve(b, work, F.LU, F.piv, F.Lx, F.Ux, F.Ud, F.pattern, np.bool_(True))
 
 
 @inner
-def _solve_transposed(b, work, LU, piv, Lx, Ux, Ud, pattern):
+def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern, transposed):
+    # ``transposed`` None: the plain solve only is compiled (a primal run never compiles the
+    # transposed one; the adjoint, which passes True, compiles both)
     if pattern is None:
         if LU is not None:
-            lu_solve_transposed(LU, piv, b)
+            if transposed is None:
+                lu_solve(LU, piv, b)
+            else:
+                lu_solve_transposed(LU, piv, b)
     else:
         Lp, Li, Up, Ui, row_from, row_scale, col_to, col_scale = pattern
-        sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
-                                col_scale, b, b, work)
+        if transposed is None:
+            sparse_solve(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, col_scale,
+                         b, b, work)
+        else:
+            sparse_solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to,
+                                    col_scale, b, b, work)
 
 
 @inner

@@ -38,7 +38,8 @@ the integrals, which change with the beam's geometry, take the perturbed path.
 import numpy as np
 
 from ._jit import inner
-from .joints import ROW_X, ROW_Y, side_hessian, side_terms
+from .joints import ROW_X, ROW_Y, side_terms
+from .loads import add_point_force, add_point_stiffness
 from .schema import Kind, design, pattern, register, timed, topology
 
 PRESSURES = register(Kind("pressures", [
@@ -221,13 +222,9 @@ def follower_residual(A, q, wf, T, t, k, items, R):
         dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
                 A.dofs[i, 5])
         c, s = _follower_force(A, q, i)
-        F0x, F0y = wf * T.F[t, k, i, 0], wf * T.F[t, k, i, 1]
-        F = (c * F0x - s * F0y, s * F0x + c * F0y)
-        for comp in range(2):
-            _, _, grad, _, _, _ = side_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
-            for j in range(6):
-                if dofs[j] >= 0:
-                    R[dofs[j]] -= grad[j] * F[comp]
+        F0x, F0y = T.F[t, k, i, 0], T.F[t, k, i, 1]
+        add_point_force(dofs, A.u0[i, 0], A.u0[i, 1], q, wf, c * F0x - s * F0y,
+                        s * F0x + c * F0y, R)
 
 
 @inner
@@ -241,21 +238,17 @@ def follower_matrix(A, q, cf, T, t, k, C, out):
                 A.dofs[i, 5])
         m = A.map[i]
         c, s = _follower_force(A, q, i)
+        F0x, F0y = T.F[t, k, i, 0], T.F[t, k, i, 1]
+        dF = (-s * F0x - c * F0y, c * F0x - s * F0y)  # A Ĩ F0 = dF/dpsi
         for r in range(C.shape[0]):
             cq = C[r, 1]
             if cq == 0.0:
                 continue
-            F0x, F0y = cf * cq * T.F[t, k, i, 0], cf * cq * T.F[t, k, i, 1]
-            F = (c * F0x - s * F0y, s * F0x + c * F0y)
-            dF = (-s * F0x - c * F0y, c * F0x - s * F0y)  # A Ĩ F0 = dF/dpsi
+            add_point_stiffness(dofs, A.u0[i, 0], A.u0[i, 1], q, cf * cq, c * F0x - s * F0y,
+                                s * F0x + c * F0y, m, out[r])
             for comp in (ROW_X, ROW_Y):
-                h22, h23, h24 = side_hessian(comp, dofs, A.u0[i, 0], A.u0[i, 1], q)
-                for (j, n, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24),
-                                  (4, 2, h24)):
-                    if m[j, n] >= 0:
-                        out[r, m[j, n]] -= F[comp] * h
                 _, _, grad, _, _, _ = side_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
                 for j in range(6):
                     for n in (2, 5):
                         if m[j, n] >= 0 and dofs[n] >= 0:
-                            out[r, m[j, n]] -= grad[j] * dF[comp]
+                            out[r, m[j, n]] -= cf * cq * grad[j] * dF[comp]
