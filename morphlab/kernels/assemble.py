@@ -17,7 +17,7 @@ import numpy as np
 
 # the kernel modules: importing one registers its kinds (morphlab.kernels.schema.KINDS), in
 # this order; a new kind of item is one module here and its two calls below
-from . import ffrf, forces, joints, loads, pressure, slides
+from . import ffrf, ffrf_matrix, forces, joints, loads, pressure, slides
 from ._jit import inner, kernel
 from .schema import KINDS
 from .types import Level, Weights
@@ -81,7 +81,7 @@ def matrix(M, x, w, T, t, k, C, out, W):
     for r in range(out.shape[0]):
         for p in range(out.shape[1]):
             out[r, p] = 0.0
-    ffrf.matrix(M.bodies, M.flex, M.elements, M.gravity, x, w, C, out, W)
+    ffrf_matrix.matrix(M.bodies, M.flex, M.elements, M.gravity, x, w, C, out, W)
     joints.matrix(M.rows, x, w, C, out)
     slides.matrix(M.slides, x, w, C, out)
     loads.load_matrix(M.loads, x.q, w.wf, T.loads, t, k, C, out)
