@@ -145,14 +145,19 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
 
 
 def test_auto_chooses_by_variables_per_response_and_vjp():
-    """More variables than responses and every response with a vjp: the adjoint; a response
-    without one, or more responses than variables: direct."""
+    """More than ``crossover`` variables per response and every response with a vjp: the
+    adjoint; a response without one, or fewer variables per response: direct. The default
+    crossover (6, measured) keeps the direct method for this model's few variables."""
     build, p0, resp = adjoint_responses("pendulum")
-    assert ml.sensitivities(build, p0, resp, method="auto", **RUN).method == "adjoint"
+    per = len(p0) / len(resp)
+    eager = ml.Auto(crossover=0.5 * per)
+    assert ml.sensitivities(build, p0, resp, method=eager, **RUN).method == "adjoint"
     plain = dict(resp, plain=lambda r: r.q[-1, 0])
-    assert ml.sensitivities(build, p0, plain, method="auto", **RUN).method == "direct"
-    few = ml.sensitivities(build, p0, resp, method="auto", variables=["t"], **RUN)
+    assert ml.sensitivities(build, p0, plain, method=eager, **RUN).method == "direct"
+    few = ml.sensitivities(build, p0, resp, method=ml.Auto(crossover=2.0 * per), **RUN)
     assert few.method == "direct"
+    assert per <= ml.Auto().crossover
+    assert ml.sensitivities(build, p0, resp, **RUN).method == "direct"  # the default: auto
 
 
 @pytest.mark.parametrize("name", CASES)
