@@ -243,7 +243,10 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     the linear path in real arithmetic, the perturbed path by complex step (``pert`` complex)
     or forward difference; ``T0``: the nominal time values of the run."""
     forward = not np.iscomplexobj(pert)
-    dt = np.dtype(np.float64 if forward else np.complex128)
+    # complex arrays on both paths: a forward difference evaluates its perturbed residual in
+    # complex arithmetic with zero imaginary parts, so it shares every compiled kernel with
+    # the complex step (the same types) instead of compiling its own
+    dt = np.dtype(np.complex128)
     lin_parts, nl_parts, fparts = [], [], []
     need = set()  # kinds the perturbed path evaluates
     lin_time, nl_time = [], []
@@ -286,5 +289,5 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     TN = Times(*(None if n not in need else x for n, x in zip(TIMED_NAMES, TN)))
     n_flex = sys0.count("flex")
     return Pseudo(OFF, OFFN, IDX, FOFF, FIDX, PO, PP, PV, VN, D0, ML, ZL, TL, tl, MN, DN, TN,
-                  tn, np.asarray(pert, dtype=np.complex128 if not forward else np.float64),
+                  tn, np.asarray(pert, dtype=np.complex128),
                   forward, scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt)))
