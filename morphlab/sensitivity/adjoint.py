@@ -28,11 +28,13 @@ from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.steps import run_steps
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp, system_data
+from ..solve.record import fits as _fits
+from ..solve.record import keep_record
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
 from .designs import CS_STEP
-from .direct import _fits, converged_blocks, keep_record
+from .direct import converged_blocks
 from .histories import to_store
 
 

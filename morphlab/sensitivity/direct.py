@@ -31,27 +31,12 @@ from ..kernels.assemble import matrix
 from ..kernels.direct import Direct, chunk, prepare, refinement_residual, store
 from ..kernels.newton import Csc
 from ..kernels.pseudo import Pseudo
+from ..solve.record import fits as _fits
+from ..solve.record import keep_record
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
 from .histories import HISTORIES, PerturbedResult
-
-
-def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool) -> Keep:
-    """An empty :class:`~morphlab.kernels.adjoint.Keep` of ``K`` steps from ``k0``, shaped for
-    the factors of ``factor_arrays`` (:meth:`~morphlab.solve.linalg.StepFactorization.
-    loop_arrays`); with ``blocks`` room for each step's ``Dq, Dv`` (the reuse variant)."""
-    F = factor_arrays
-    dt = system.dtype
-
-    def rows(x, dtype=dt):  # the factor's own fields; None for the other kind's
-        return None if x is None else np.zeros((K,) + x.shape, dtype)
-
-    return Keep(rows(F.LU), rows(F.piv, np.int64), rows(F.Lx), rows(F.Ux), rows(F.Ud),
-                np.zeros((K, 2, system.nnz if blocks else 0), dt),
-                np.zeros((K + 1, system.n_dof), dt),
-                np.zeros((K + 1, system.n_dof), dt), np.zeros((K + 1, system.n_dof), dt),
-                np.zeros((K + 1, system.n_con), dt), np.array([k0], dtype=np.int64))
 
 
 def start_record(K: Keep, hist, k0: int) -> Keep:
@@ -150,13 +135,6 @@ def converged_blocks(stepper, sc, new) -> tuple:
     matrix(stepper.M, new, sc.w_new, stepper.T, np.int64(0), np.int64(0), np.eye(3), data,
            stepper.newton.W)
     return data[1], data[2]
-
-
-def _fits(K: Keep, F) -> bool:
-    """Does the record hold factors of ``F``'s kind and sizes?"""
-    if F.order is None:
-        return K.LU is not None and K.LU.shape[1:] == F.LU.shape
-    return K.Lx is not None and K.Lx.shape[1] == F.Lx.size and K.Ux.shape[1] == F.Ux.size
 
 
 def _level(st):

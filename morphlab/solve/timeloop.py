@@ -32,6 +32,7 @@ from ..model import Model
 from ..results.checks import assess, report_findings
 from ..results.result import Result
 from .linalg import Factor
+from .record import keep_record
 from .scheme import StepCoefficients
 from .settings import Settings, State
 from .stepper import StepOutcome, Stepper
@@ -262,6 +263,8 @@ class _Loop:
             k1 = self.hook.chunk(n, k1)
             keep = self.hook.kernels(n, k1)
         F = nw.factorization.loop_arrays()
+        if keep is None:  # an empty record: the compiled loop of a primal and a sensitivity
+            keep = keep_record(self.system, F, 0, n, nw.data.shape[0] == 3)  # run is one
         w0 = _time.perf_counter()
         k, status, bad, it, z = run_steps(stp.M, self.T, stp.P, stp.scheme_of(), nw.csc, F,
                                           nw.options(), nw.work(), self.hist.H, n, k1, keep)
