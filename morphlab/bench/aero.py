@@ -12,11 +12,52 @@
 
 Each function runs once untimed, then in interleaved rounds (:mod:`morphlab.bench.gradients`).
 ``quick`` times the gradient on 150-step runs (dt 1 ms) instead of the study's 300.
+
+The flow evaluation is timed again in a child process with one BLAS thread
+(``OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=1``): NeuralFoil's small matrix products and the
+panel solve gain nothing from a second thread, and on a machine whose cores are busy the BLAS
+threads wait for each other (measured 15 ms single-threaded against a median of 176 ms with
+two threads at load 4 on 2 cores).
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 from ..solve.settings import Settings
+
+#: The child process of the single-threaded flow timing: prints the times [s] as JSON.
+_CHILD = """
+import json, sys, time
+from morphlab.morphing import aero, flight
+from morphlab.morphing import leading_edge as le
+xy, cond = aero.section(le.target()), flight.THERMALLING
+out = {}
+for key, kw in (("target_cl", {}), ("target_cl_no_pressure", {"pressure": False})):
+    aero.analyze(xy, cond, **kw)
+    times = []
+    for _ in range(int(sys.argv[1])):
+        t0 = time.perf_counter()
+        aero.analyze(xy, cond, **kw)
+        times.append(time.perf_counter() - t0)
+    out[key] = times
+print(json.dumps(out))
+"""
+
+
+def _single_thread_flow(repeats: int) -> dict:
+    """Flow evaluations [s] in a child process with one BLAS thread (module docstring)."""
+    from ..studies.timing import time_stats
+
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
+    proc = subprocess.run([sys.executable, "-c", _CHILD, str(max(repeats, 3))], env=env,
+                          capture_output=True, text=True, check=True)
+    times = json.loads(proc.stdout.strip().splitlines()[-1])
+    return {k: time_stats(v) for k, v in times.items()}
 
 
 def case_aero(repeats: int, quick: bool) -> dict:
@@ -51,7 +92,8 @@ def case_aero(repeats: int, quick: bool) -> dict:
         "primal": lambda: ml.simulate(opt.build(p0), settings=settings),
     }, repeats)
     return {
-        "flow_s": flows, "coupled_s": coupled, "gradient_s": grad,
+        "flow_s": flows, "flow_one_blas_thread_s": _single_thread_flow(repeats),
+        "coupled_s": coupled, "gradient_s": grad,
         "settings": {"t_end": settings.t_end, "dt": settings.dt},
         "passes": {k: r.iterations for k, r in eqs.items()},
         "share_s": {k: {"static": r.timing["static"], "flow": r.timing["flow"]}
@@ -77,7 +119,14 @@ def render(r: dict, check) -> list[str]:
              f"| from a nearby start angle (no scan for the CL) | {s3(f['from_start_angle'])} | "
              f"{ratio(f['from_start_angle'], base)} |",
              f"| at a given angle of attack | {s3(f['fixed_alpha'])} | "
-             f"{ratio(f['fixed_alpha'], base)} |", "",
+             f"{ratio(f['fixed_alpha'], base)} |"]
+    one = r.get("flow_one_blas_thread_s")
+    if one:
+        lines += [f"| one BLAS thread (child process): with pressure | "
+                  f"{s3(one['target_cl'])} | {ratio(one['target_cl'], base)} |",
+                  f"| one BLAS thread: NeuralFoil only | {s3(one['target_cl_no_pressure'])} | "
+                  f"{ratio(one['target_cl_no_pressure'], base)} |"]
+    lines += ["",
              "| coupled solve (aeroelastic equilibrium, tol 1e-6 mm) | median [s] | passes | "
              "statics / flow [s] (untimed call) | deflection max [mm] |",
              "|---|---|---|---|---|"]

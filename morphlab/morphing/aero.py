@@ -31,7 +31,10 @@ of attack is found again for every shape: the weight sets the lift);
 :mod:`~morphlab.morphing.aeroelastic` applies it as a follower pressure on the skin (its
 width is the span) and iterates flow and statics to the equilibrium. The design responses
 built on :func:`analyze` are in :mod:`~morphlab.morphing.aero_response`; the time of one
-analysis is in BENCHMARKS.md (case ``aero``).
+analysis is in BENCHMARKS.md (case ``aero``): about 15 ms (7 ms without the panel method)
+with one BLAS thread. On a machine whose cores are busy, NumPy's BLAS threads in NeuralFoil's
+small matrix products and the panel solve wait for each other (a median of 176 ms at load 4
+on 2 cores): set ``OPENBLAS_NUM_THREADS=1`` before starting Python there.
 
 Units: coordinates in mm, pressures in MPa (N/mm²), angles in degrees, flight data in SI
 (:mod:`~morphlab.morphing.flight`).
