@@ -2,6 +2,8 @@
 exact potential flow, frame handling, the pressure on the skin and the smoothness the design
 gradients need."""
 
+import pickle
+
 import numpy as np
 import pytest
 
@@ -231,6 +233,9 @@ def test_aero_response_carries_a_complex_direction_by_central_differences():
     # tests/test_drag_is_smooth_in_the_shape measures at ~1e-4 relative for 60 micrometres
     assert value.imag / 1e-20 == pytest.approx(ref, rel=1e-3)
     assert drag.of_nodes(x + 0j) == complex(drag.of_nodes(x), 0.0)
+    # it travels to worker processes (sweeps, Dask) with its options
+    copy = pickle.loads(pickle.dumps(drag))
+    assert copy.of_nodes(x) == drag.of_nodes(x) and copy.options == drag.options
     assert set(aero.aero_responses(flight.HIGH_SPEED)) == {
         "drag", "lift_to_drag", "transition_upper", "transition_lower"}
     with pytest.raises(ModelError, match="step"):

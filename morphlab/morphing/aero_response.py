@@ -87,9 +87,11 @@ class AeroResponse:
             raise ModelError(f"step must be a float in (0, 0.1] mm, got {step!r}")
         self.quantity, self.condition, self.body, self.time = quantity, condition, body, time
         self.step = step
-        self._read, needs_cp = QUANTITIES[quantity]
-        self.options = {"pressure": needs_cp, **options}
+        self.options = {"pressure": QUANTITIES[quantity][1], **options}
         self._last: tuple[bytes, float, float] | None = None
+
+    def _read(self, flow: AeroResult) -> float:
+        return float(QUANTITIES[self.quantity][0](flow))
 
     def analysis(self, skin_nodes: ArrayLike, alpha_start: float | None = None) -> AeroResult:
         """The flow about the section of real skin nodes (n_nodes, 2) [mm]."""
@@ -102,7 +104,7 @@ class AeroResponse:
         key = x.tobytes()
         if self._last is None or self._last[0] != key:
             r = self.analysis(x)
-            self._last = (key, float(self._read(r)), r.alpha)
+            self._last = (key, self._read(r), r.alpha)
         return self._last[1], self._last[2]
 
     def of_nodes(self, skin_nodes: ArrayLike):
