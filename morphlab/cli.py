@@ -25,7 +25,8 @@ class UsageError(MorphlabError):
 
 #: The command's description in its help (plain text: the help is no reST).
 DESCRIPTION = ("morphlab: planar flexible multibody dynamics with design sensitivities. "
-               "'morphlab morphing --out DIR' runs the paper's morphing leading-edge study; "
+               "'morphlab morphing --out DIR' runs the paper's morphing leading-edge study "
+               "and its flight loads and aerodynamics; "
                "'morphlab warmup' compiles the numerical kernels ahead of time.")
 
 
@@ -46,7 +47,9 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     m = sub.add_parser("morphing", help="run the morphing leading-edge study (paper §4)",
                        description="Run the morphing leading-edge study of the paper (§4): "
-                       "tables, figures and morphing.json in the output folder.",
+                       "tables, figures and morphing.json in the output folder; then the "
+                       "skin in flight (high speed and thermalling): aeroelastic equilibria, "
+                       "CL, CD, transition, deflection, flight_loads.json.",
                        formatter_class=fmt)
     m.add_argument("--out", default="morphing-out", help="output folder (figures, JSON)")
     m.add_argument("--quick", action="store_true",
@@ -58,6 +61,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="override a design variable, e.g. --set t_w=2.5 (repeatable; default: "
                    "the study's design)")
     m.add_argument("--progress", action="store_true", help="show a progress bar")
+    m.add_argument("--no-aero", action="store_true",
+                   help="skip the flight loads and aerodynamics (flight_loads.json, figures "
+                   "10-11: CL, CD, transition, the skin's deflection under the air load)")
     w = sub.add_parser("warmup", help="compile the kernels the morphing study needs",
                        description="Compile the numerical kernels the morphing study "
                        "(morphlab morphing) needs: its time loop and its sensitivity methods, "
@@ -133,14 +139,29 @@ def _morphing(args, interrupts: _Interrupts) -> str:
     staging = _staging(args.out)
     try:
         _check_design(overrides)
-        report = morphing.study(out=staging, overrides=overrides, quick=args.quick,
-                                figures=not args.no_figures, timing=not args.no_timing,
-                                progress=args.progress)
+        report = str(morphing.study(out=staging, overrides=overrides, quick=args.quick,
+                                    figures=not args.no_figures, timing=not args.no_timing,
+                                    progress=args.progress))
         interrupts.check()
+        if not args.no_aero:
+            report += "\n\n" + _aero(overrides, staging, not args.no_figures)
+            interrupts.check()
         _publish(staging, args.out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return str(report)
+    return report
+
+
+def _aero(overrides: dict, staging: str, figures: bool) -> str:
+    """The flight loads of the study's design (morphlab.morphing.flight_loads) into the
+    staging folder; their text is appended to report.txt."""
+    from .morphing import leading_edge as morphing
+    from .morphing.flight_loads import flight_loads
+
+    loads = flight_loads({**morphing.DEFAULTS, **overrides}, out=staging, figures=figures)
+    with open(os.path.join(staging, "report.txt"), "a", encoding="utf-8") as f:
+        f.write("\n" + loads.report + "\n")
+    return loads.report
 
 
 class _Interrupts:

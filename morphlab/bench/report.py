@@ -32,6 +32,7 @@ DESCRIPTIONS = {
     "variables": "gradient cost against 1 ... 200 design variables, 240-element skin",
     "pendulum": "flexible pendulum, 32 thickness variables, one response",
     "optimizers": "notebook 05's optimizer comparison on its full budget",
+    "aero": "flight loads: per flow evaluation, per coupled solve, drag gradient",
     "elements": "time per step and memory against 30 ... 3000 skin elements",
     "memory": "peak memory of the adjoint on a long run",
     "sweep": "parameter-study throughput: serial, process pool, Dask",

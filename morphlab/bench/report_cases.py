@@ -262,3 +262,10 @@ def exudyn(r: dict, check) -> list[str]:
                      + f" | {s3(s['morphlab_direct'])} | {s3(s['exudyn_forward_difference'])} | "
                      f"{x['sensitivities']['ratios']['exudyn_fd_over_morphlab_direct']:.2f} |")
     return lines + [""]
+
+
+def aero(r: dict, check) -> list[str]:
+    """Flow evaluation, coupled solve, drag gradient (:func:`morphlab.bench.aero.render`)."""
+    from .aero import render
+
+    return render(r, check)

@@ -48,6 +48,8 @@ def _case(name: str):
         from .variables import case_variables as fn
     elif name == "optimizers":
         from .optimizers import case_optimizers as fn
+    elif name == "aero":
+        from .aero import case_aero as fn
     elif name == "elements":
         from .elements import case_elements as fn
     elif name == "memory":

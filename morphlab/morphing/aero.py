@@ -25,11 +25,16 @@ Two tools, each for what it does well:
 The pressure on the skin is the gauge pressure ``p = q Cp`` [MPa]: positive pushes on the
 surface (acts against the outward normal), negative (suction) pulls it outward.
 
-Coupling with the structure (a static aeroelastic iteration): :func:`skin_loads` takes the
-skin's nodes and returns the nodal pressure [MPa] of the section they shape, at the flight
-condition (with a target CL the angle of attack is found again for every shape: the weight
-sets the lift); applied as a follower pressure on the skin (its width is the span), solved,
-and repeated with the new nodes until they stop moving. One call takes ~20 ms.
+Coupling with the structure: :func:`skin_loads` takes the skin's nodes and returns the nodal
+pressure [MPa] of the section they shape, at the flight condition (with a target CL the angle
+of attack is found again for every shape: the weight sets the lift);
+:mod:`~morphlab.morphing.aeroelastic` applies it as a follower pressure on the skin (its
+width is the span) and iterates flow and statics to the equilibrium. The design responses
+built on :func:`analyze` are in :mod:`~morphlab.morphing.aero_response`; the time of one
+analysis is in BENCHMARKS.md (case ``aero``): about 15 ms (7 ms without the panel method)
+with one BLAS thread. On a machine whose cores are busy, NumPy's BLAS threads in NeuralFoil's
+small matrix products and the panel solve wait for each other (a median of 176 ms at load 4
+on 2 cores): set ``OPENBLAS_NUM_THREADS=1`` before starting Python there.
 
 Units: coordinates in mm, pressures in MPa (N/mm²), angles in degrees, flight data in SI
 (:mod:`~morphlab.morphing.flight`).
@@ -42,14 +47,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import ModelError, SensitivityError
+from ..errors import ModelError
 from .cst import CSTAirfoil
 from .flight import FlightCondition
 from .panel import panel_solution
 from .profile import Contour, kulfan_fit, skin_curve, whole_airfoil
 
-__all__ = ["AeroResult", "section", "analyze", "skin_pressure", "skin_loads", "AeroResponse",
-           "aero_responses", "MODEL_SIZES"]
+__all__ = ["AeroResult", "section", "analyze", "skin_pressure", "skin_loads", "MODEL_SIZES"]
 
 FloatArray = NDArray[np.float64]
 
@@ -135,23 +139,36 @@ class AeroResult:
         return self.cl / self.cd
 
     @property
+    def has_pressure(self) -> bool:
+        """Whether the panel solution was computed (``analyze(..., pressure=True)``)."""
+        return self.cp.size > 0
+
+    def _need_pressure(self) -> None:
+        if not self.has_pressure:
+            raise ModelError("this analysis has no pressure distribution: run analyze(..., "
+                             "pressure=True)")
+
+    @property
     def cp_min(self) -> float:
         """Lowest (peak suction) inviscid Cp on the contour."""
+        self._need_pressure()
         return float(np.nanmin(self.cp))
 
     def cp_at(self, points: ArrayLike) -> FloatArray:
         """Inviscid Cp at points on (or next to) the contour, shape (m,): each point is
         projected onto the spline and Cp is interpolated linearly in the contour parameter
         between the panel nodes."""
+        self._need_pressure()
         # the trailing-edge nodes carry no Cp
         return np.interp(self.contour.locate(points), self.s_nodes[1:-1], self.cp[1:-1])
 
     def summary(self) -> str:
         """One line: CL, CD [counts], L/D, CM, transition, peak suction."""
+        cp_min = f"{self.cp_min:.3f}" if self.has_pressure else "-"
         return (f"{self.condition.name or 'condition'}: alpha {self.alpha:.3f} deg, "
                 f"CL {self.cl:.4f}, CD {self.cd_counts:.2f} counts, L/D {self.lift_to_drag:.1f}, "
                 f"CM {self.cm:.4f}, x_tr/c {self.xtr_upper:.3f} upper / {self.xtr_lower:.3f} "
-                f"lower, Cp_min {self.cp_min:.3f}, confidence {self.confidence:.2f}")
+                f"lower, Cp_min {cp_min}, confidence {self.confidence:.2f}")
 
 
 def section(skin_nodes: ArrayLike | None = None, airfoil: CSTAirfoil | None = None) -> FloatArray:
@@ -196,9 +213,26 @@ def _evaluate(fit, condition: FlightCondition, alpha, model_size: str) -> dict:
     return {**out, **_coefficients(out, fit, condition, alpha)}
 
 
-def _alpha_for_cl(fit, condition: FlightCondition, model_size: str) -> float:
-    """Angle of attack [deg] of the target CL: a scan brackets it, Newton (central-difference
-    slope, one vectorised call per step) refines it to |dCL| < 1e-12."""
+def _alpha_for_cl(fit, condition: FlightCondition, model_size: str,
+                  start: float | None = None) -> float:
+    """Angle of attack [deg] of the target CL: Newton (central-difference slope, one
+    vectorised call per step) to |dCL| < 1e-12, from ``start`` or from a bracket found by a
+    scan of [-8, 16] deg (also when Newton from ``start`` does not converge in 6 steps)."""
+    h = 1e-3
+
+    def newton(a: float, n_steps: int) -> float | None:
+        for _ in range(n_steps):
+            c3 = _evaluate(fit, condition, [a - h, a, a + h], model_size)["cl"]
+            res = c3[1] - condition.cl
+            if abs(res) < 1e-12:
+                return float(a)
+            a -= res * 2.0 * h / (c3[2] - c3[0])
+        return None
+
+    if start is not None:
+        a = newton(float(start), 6)
+        if a is not None:
+            return a
     grid = np.linspace(-8.0, 16.0, 49)
     cl = _evaluate(fit, condition, grid, model_size)["cl"]
     above = np.nonzero(cl >= condition.cl)[0]
@@ -208,14 +242,10 @@ def _alpha_for_cl(fit, condition: FlightCondition, model_size: str) -> float:
                          f"({condition.name or 'condition'}, Re {condition.reynolds:.3g})")
     k = above[0]
     a = grid[k - 1] + (condition.cl - cl[k - 1]) * (grid[k] - grid[k - 1]) / (cl[k] - cl[k - 1])
-    h = 1e-3
-    for _ in range(20):
-        c3 = _evaluate(fit, condition, [a - h, a, a + h], model_size)["cl"]
-        res = c3[1] - condition.cl
-        if abs(res) < 1e-12:
-            return float(a)
-        a -= res * 2.0 * h / (c3[2] - c3[0])
-    raise ModelError(f"no angle of attack found for cl {condition.cl} (residual {res:.2e})")
+    found = newton(a, 20)
+    if found is None:
+        raise ModelError(f"no angle of attack found for cl {condition.cl}")
+    return found
 
 
 def _match_skin(panels, s_in, s_st, target, alpha0: float) -> float:
@@ -237,7 +267,8 @@ def _match_skin(panels, s_in, s_st, target, alpha0: float) -> float:
 
 
 def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: str = "xlarge",
-            n_panels: int = 240, cp_match: str = "skin", match_xc: float = 0.26) -> AeroResult:
+            n_panels: int = 240, cp_match: str = "skin", match_xc: float = 0.26,
+            pressure: bool = True, alpha_start: float | None = None) -> AeroResult:
     """Flow about a wing section at a flight condition.
 
     Parameters
@@ -257,6 +288,14 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
         ("lift"); see the module's notes.
     match_xc : float, optional
         Extent of the fit in x/c; default 0.26, the skin's (the spar at 0.25 c).
+    pressure : bool, optional
+        Solve the panel method (default). ``False`` gives NeuralFoil's outputs only (CL, CD,
+        CM, transition, viscous Cp at its stations) in about half the time; the panel fields
+        of the result are then empty and :attr:`AeroResult.alpha_inviscid` is NaN.
+    alpha_start : float, optional
+        Start [deg] of the Newton search for a target CL (e.g. the angle of a nearby shape);
+        without it, or when Newton does not converge from it, a scan brackets the angle.
+        The angle found is the same either way (to the 1e-12 tolerance on CL).
 
     Returns
     -------
@@ -278,16 +317,25 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
     contour = Contour(coordinates)
     fit = kulfan_fit(contour)
     alpha = (float(condition.alpha) if condition.alpha is not None
-             else _alpha_for_cl(fit, condition, model_size))
+             else _alpha_for_cl(fit, condition, model_size, alpha_start))
     out = _evaluate(fit, condition, alpha, model_size)
-    s_nodes = contour.panel_parameters(n_panels)
-    nodes = contour(s_nodes)
-    panels = panel_solution(nodes, chord=condition.chord)
     cl = float(out["cl"][0])
     nf = _neuralfoil()
     bl_x = np.asarray(nf.bl_x_points, dtype=float)
     cp_u = 1.0 - np.array([out[f"upper_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
     cp_l = 1.0 - np.array([out[f"lower_bl_ue/vinf_{i}"][0] for i in range(bl_x.size)]) ** 2
+    common = dict(condition=condition, alpha=alpha, cl=cl, cd=float(out["cd"][0]),
+                  cm=float(out["cm"][0]), xtr_upper=float(out["Top_Xtr"][0]),
+                  xtr_lower=float(out["Bot_Xtr"][0]),
+                  confidence=float(out["analysis_confidence"][0]), contour=contour,
+                  fit_rms=fit.rms, bl_x=bl_x, cp_upper=cp_u, cp_lower=cp_l)
+    if not pressure:
+        empty = np.empty(0)
+        return AeroResult(nodes=np.empty((0, 2)), s_nodes=empty, cp=empty,
+                          alpha_inviscid=float("nan"), cp_match_rms=float("nan"), **common)
+    s_nodes = contour.panel_parameters(n_panels)
+    nodes = contour(s_nodes)
+    panels = panel_solution(nodes, chord=condition.chord)
     # NeuralFoil's stations on the skin (both surfaces) and its viscous Cp there
     sel = bl_x <= match_xc
     s_st = np.concatenate([contour.at_x(bl_x[sel], True), contour.at_x(bl_x[sel], False)])
@@ -297,13 +345,8 @@ def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: s
         alpha_inv = _match_skin(panels, s_nodes[1:-1], s_st, cp_st, alpha_inv)
     cp = panels.cp(alpha_inv)
     miss = np.interp(s_st, s_nodes[1:-1], cp[1:-1]) - cp_st
-    return AeroResult(
-        condition=condition, alpha=alpha, cl=cl, cd=float(out["cd"][0]), cm=float(out["cm"][0]),
-        xtr_upper=float(out["Top_Xtr"][0]), xtr_lower=float(out["Bot_Xtr"][0]),
-        confidence=float(out["analysis_confidence"][0]), contour=contour, fit_rms=fit.rms,
-        nodes=nodes, s_nodes=s_nodes, cp=cp, alpha_inviscid=alpha_inv,
-        cp_match_rms=float(np.sqrt(np.mean(miss * miss))), bl_x=bl_x, cp_upper=cp_u,
-        cp_lower=cp_l)
+    return AeroResult(nodes=nodes, s_nodes=s_nodes, cp=cp, alpha_inviscid=alpha_inv,
+                      cp_match_rms=float(np.sqrt(np.mean(miss * miss))), **common)
 
 
 def skin_pressure(result: AeroResult, points: ArrayLike) -> FloatArray:
@@ -355,71 +398,10 @@ def skin_loads(skin_nodes: ArrayLike, condition: FlightCondition,
     return skin_pressure(res, nodes), res
 
 
-#: What :class:`AeroResponse` can read from an :class:`AeroResult`.
-_QUANTITIES = {
-    "drag": lambda r: r.cd_counts,
-    "lift_to_drag": lambda r: r.lift_to_drag,
-    "transition_upper": lambda r: r.xtr_upper,
-    "transition_lower": lambda r: r.xtr_lower,
-    "lift": lambda r: r.cl,
-    "moment": lambda r: r.cm,
-    "cp_min": lambda r: r.cp_min,
-}
+def __getattr__(name: str):
+    # the design responses live in .aero_response (which imports this module)
+    if name in ("AeroResponse", "aero_responses"):
+        from . import aero_response
 
-
-class AeroResponse:
-    """An aerodynamic response of the skin's final shape in a run: ``f(result) -> float``.
-
-    Parameters
-    ----------
-    quantity : str
-        ``"drag"`` [counts], ``"lift_to_drag"``, ``"transition_upper"``,
-        ``"transition_lower"`` [x/c], ``"lift"``, ``"moment"``, ``"cp_min"``.
-    condition : FlightCondition
-        Usually with a target ``cl`` (the sailplane's weight sets the lift).
-    body : str, optional
-        The skin beam; default ``"skin"``.
-    time : int, optional
-        Time index of the shape; default the last.
-    **options
-        Passed to :func:`analyze`.
-
-    Notes
-    -----
-    Not complex-safe (NeuralFoil runs on real numbers): :attr:`complex_safe` is False and a
-    complex-step history raises a :class:`~morphlab.errors.SensitivityError`. Differentiate by
-    central differences of whole runs; the response is smooth in the node coordinates (the
-    section, its CST fit and the CL solve are smooth functions of them).
-    """
-
-    complex_safe = False
-
-    def __init__(self, quantity: str, condition: FlightCondition, *, body: str = "skin",
-                 time: int = -1, **options):
-        if quantity not in _QUANTITIES:
-            raise ModelError(f"unknown aerodynamic quantity {quantity!r}; known: "
-                             f"{sorted(_QUANTITIES)}")
-        self.quantity, self.condition, self.body, self.time = quantity, condition, body, time
-        self.options = options
-
-    def of_nodes(self, skin_nodes: ArrayLike) -> float:
-        """The response of a skin given by its nodes (n_nodes, 2) [mm]."""
-        nodes = np.asarray(skin_nodes)
-        if np.iscomplexobj(nodes) and np.any(nodes.imag != 0.0):
-            raise SensitivityError(f"aerodynamic response {self.quantity!r} is not complex-safe "
-                                   "(NeuralFoil is real-valued): use central differences")
-        return float(_QUANTITIES[self.quantity](
-            analyze(section(np.real(nodes)), self.condition, **self.options)))
-
-    def __call__(self, result) -> float:
-        return self.of_nodes(result.node_positions(self.body, self.time))
-
-    def __repr__(self) -> str:
-        return f"AeroResponse({self.quantity!r}, {self.condition.name or self.condition})"
-
-
-def aero_responses(condition: FlightCondition, **options) -> dict[str, AeroResponse]:
-    """The design responses ``drag`` [counts], ``lift_to_drag``, ``transition_upper`` and
-    ``transition_lower`` [x/c] at one flight condition (see :class:`AeroResponse`)."""
-    return {q: AeroResponse(q, condition, **options)
-            for q in ("drag", "lift_to_drag", "transition_upper", "transition_lower")}
+        return getattr(aero_response, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

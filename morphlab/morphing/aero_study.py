@@ -17,7 +17,7 @@ from .airfoil import X_SPAR_MM
 from .flight import CONDITIONS, FlightCondition
 from .geometry import SPAN_MM, undeformed
 
-__all__ = ["aero_table", "format_table", "plot_cp"]
+__all__ = ["aero_table", "format_table", "plot_cp", "plot_skin_load"]
 
 #: (key, title, format) of the columns of :func:`format_table`.
 _COLUMNS = [
@@ -132,3 +132,55 @@ def plot_cp(results: dict[str, AeroResult], ax=None, *, xc_max: float = 1.0):
     ax.legend(fontsize=8)
     ax.set_title("Cp: panel method (lines), NeuralFoil stations (dots: upper filled)")
     return ax.figure
+
+
+def plot_skin_load(results: dict, *, scale: float | None = None):
+    """The skin under its air load: shapes with the deflection magnified, the line load on the
+    span and the deflection along the outward normal, per node.
+
+    Parameters
+    ----------
+    results : dict
+        Label -> :class:`~morphlab.morphing.aeroelastic.AeroelasticResult`.
+    scale : float, optional
+        Magnification of the deflection in the shape panel; default: the largest deflection
+        drawn as 5 mm.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Three panels: (a) the vacuum skins (grey) and ``vacuum + scale * deflection``; (b)
+        the nodal pressure times the span [N/mm] (negative: suction, pulling outwards);
+        (c) the deflection along the vacuum skin's outward normal [mm] by node (F = 0).
+    """
+    from matplotlib.figure import Figure
+
+    if not results:
+        raise ModelError("results must hold at least one AeroelasticResult")
+    if scale is None:
+        largest = max(r.deflection_max for r in results.values())
+        scale = 5.0 / largest if largest > 0.0 else 1.0
+    if not scale > 0.0:
+        raise ModelError(f"scale must be positive, got {scale!r}")
+    fig = Figure(figsize=(13.0, 4.2), layout="constrained")
+    ax = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.1, 1.0, 1.0]})
+    for label, r in results.items():
+        x0, x1 = r.nodes_vacuum, r.nodes_loaded
+        ax[0].plot(*x0.T, color="0.75", lw=0.8)
+        (line,) = ax[0].plot(*(x0 + scale * (x1 - x0)).T, ".-", ms=3, lw=1.0, label=label)
+        c = line.get_color()
+        nodes = np.arange(x0.shape[0])
+        ax[1].plot(nodes, r.pressure * r.width[0], ".-", ms=3, color=c, label=label)
+        ax[2].plot(nodes, r.deflection_normal, ".-", ms=3, color=c,
+                   label=f"{label}: max {r.deflection_max:.3f}, RMS {r.deflection_rms:.3f} mm")
+    ax[0].set(aspect="equal", xlabel="x [mm]", ylabel="y [mm]",
+              title=f"skin in vacuum (grey) and loaded, deflection x {scale:.0f}")
+    ax[1].axhline(0.0, color="0.6", lw=0.6)
+    ax[1].set(xlabel="skin node (F = 0, G last)", ylabel="pressure x span [N/mm]",
+              title="air load (negative: suction, outwards)")
+    ax[2].axhline(0.0, color="0.6", lw=0.6)
+    ax[2].set(xlabel="skin node (F = 0, G last)", ylabel="deflection along outward normal [mm]",
+              title="deflection under the air load")
+    ax[0].legend(fontsize=7)
+    ax[2].legend(fontsize=7)
+    return fig
