@@ -34,25 +34,10 @@ from . import optimization as opt
 from .aero_response import AeroResponse
 from .flight import THERMALLING, FlightCondition
 from .flight_loads import configuration
+from .optimization import HOLD_ROTATION_RAD, hold_rotation
 
 __all__ = ["HOLD_ROTATION_RAD", "hold_rotation", "hold_margin", "responses", "drag_problem",
            "evaluate", "compare", "format_comparison"]
-
-#: Largest crank rotation [rad] accepted while the torque is held (after its ramp). A design
-#: that follows the torque quasi-statically lags by ~0.0006 rad (start design and shape-error
-#: optimum: 0.00061 and 0.00062 rad at dt = 0.5 ms); a snap-through turns by tenths of a rad.
-HOLD_ROTATION_RAD = 0.005
-
-
-def hold_rotation(result):
-    """Crank rotation [rad] from the end of the torque's ramp to the end of the run
-    (complex-safe)."""
-    from .leading_edge import T_RAMP_S
-
-    _, theta = result.reference("crank")
-    k = int(np.argmin(np.abs(np.real(result.t) - T_RAMP_S)))
-    return theta[-1] - theta[k]
-
 
 def hold_margin(result):
     """``1 - (hold_rotation / HOLD_ROTATION_RAD)**2``: 1 at rest, 0 at the limit, negative
