@@ -97,7 +97,7 @@ class Sweep(NamedTuple):
 def keep(K, F, data, x, k):
     """Record step ``k``'s factors ``F``, the ``Dq``, ``Dv`` of its last fill ``data`` (3, nnz)
     and its state ``x`` in ``K`` (None: nothing kept)."""
-    if K is None or K.Q.shape[0] == 0:  # nothing kept (an empty record: a primal run)
+    if K is None or K.D.shape[0] == 0:  # nothing kept (an empty record: a primal run)
         return
     j = k - K.k0[0]
     for r in range(x.q.shape[0]):
