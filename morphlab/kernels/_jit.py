@@ -36,3 +36,10 @@ def inner(fn):
     if isinstance(d, CPUDispatcher):  # not with NUMBA_DISABLE_JIT, which returns ``fn``
         d.__class__ = InnerDispatcher
     return d
+
+
+def inlined(fn):
+    """Inline ``fn`` into the kernels that call it, at Numba level (no call of its own): for
+    the small helpers of the per-row loops, whose calls would cost a sizable part of a step.
+    Each call site types it again, so it is for helpers called from few places."""
+    return njit(inline="always")(fn)

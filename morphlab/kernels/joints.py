@@ -35,7 +35,7 @@ add ``w_l J^T lambda`` to the equations of motion (paper eq. 25–26 use ``w_l =
 
 import numpy as np
 
-from ._jit import inner, kernel
+from ._jit import inlined, inner, kernel
 from .schema import Kind, design, pattern, register, timed, topology
 
 #: Kinds of constraint rows (``rows.kind``; module docstring).
@@ -103,7 +103,7 @@ def reaction_directions(A, items, sides, q) -> np.ndarray:
     return out
 
 
-@inner
+@inlined
 def side_terms(kind, dofs, ux0, uy0, q, v, a):
     """Value, gradient and second-order terms of one side of a point or angle row (sign not
     applied).
@@ -163,7 +163,7 @@ def side_terms(kind, dofs, ux0, uy0, q, v, a):
     return g, vHv, grad, Hv, Ha, dvHv
 
 
-@inner
+@inlined
 def side_hessian(kind, dofs, ux0, uy0, q):
     """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side of an
     x (``kind`` 0) or y (1) row (symmetric)."""
@@ -180,7 +180,7 @@ def side_hessian(kind, dofs, ux0, uy0, q):
     return -(s * ux + c * uy), c, -s
 
 
-@inner
+@inlined
 def point_side(kind, dofs, ux0, uy0, q, v, a):
     """:func:`side_terms`, or zeros for the ground (no DOFs; its point sits in ``c``)."""
     if dofs[0] < 0 and dofs[2] < 0:
@@ -190,28 +190,26 @@ def point_side(kind, dofs, ux0, uy0, q, v, a):
     return side_terms(kind, dofs, ux0, uy0, q, v, a)
 
 
-@inner
+@inlined
 def _scaled(x, t):
     return (x * t[0], x * t[1], x * t[2], x * t[3], x * t[4], x * t[5])
 
 
-@inner
-def _row(A, i, q, v, a):
-    """``(g, vHv, grad, Hv, Ha, dvHv)`` of row ``i``, signs applied, the last four as pairs
-    (side 0, side 1) of 6-tuples (:func:`side_terms`); side 1 scaled by minus its coefficient for
-    a gear row, by minus one otherwise."""
+@inlined
+def _side(A, i, side, q, v, a):
+    """``(sign, g, vHv, grad, Hv, Ha, dvHv, dofs)`` of side ``side`` of row ``i``
+    (:func:`point_side`, the last five 6-tuples on the side's DOFs ``dofs``); ``sign`` the
+    side's coefficient in the row: 1 for side 0, minus one for side 1 (minus the ratio for a
+    gear row)."""
     kind = A.kind[i]
-    d0 = (A.dofs[i, 0, 0], A.dofs[i, 0, 1], A.dofs[i, 0, 2], A.dofs[i, 0, 3], A.dofs[i, 0, 4],
-          A.dofs[i, 0, 5])
-    d1 = (A.dofs[i, 1, 0], A.dofs[i, 1, 1], A.dofs[i, 1, 2], A.dofs[i, 1, 3], A.dofs[i, 1, 4],
-          A.dofs[i, 1, 5])
-    g0, vHv0, gr0, Hv0, Ha0, dv0 = point_side(kind, d0, A.u0[i, 0, 0], A.u0[i, 0, 1], q, v, a)
-    g1, vHv1, gr1, Hv1, Ha1, dv1 = point_side(kind, d1, A.u0[i, 1, 0], A.u0[i, 1, 1], q, v, a)
-    r = -1.0 + 0.0 * A.u0[i, 1, 2]
-    if kind == ROW_GEAR:
-        r = -A.u0[i, 1, 2]
-    return (g0 + r * g1, vHv0 + r * vHv1, (gr0, _scaled(r, gr1)), (Hv0, _scaled(r, Hv1)),
-            (Ha0, _scaled(r, Ha1)), (dv0, _scaled(r, dv1)))
+    d = (A.dofs[i, side, 0], A.dofs[i, side, 1], A.dofs[i, side, 2], A.dofs[i, side, 3],
+         A.dofs[i, side, 4], A.dofs[i, side, 5])
+    sign = 1.0 + 0.0 * A.u0[i, 1, 2]
+    if side == 1:
+        sign = -A.u0[i, 1, 2] if kind == ROW_GEAR else -sign
+    g, vHv, grad, Hv, Ha, dvHv = point_side(kind, d, A.u0[i, side, 0], A.u0[i, side, 1], q, v,
+                                            a)
+    return sign, g, vHv, grad, Hv, Ha, dvHv, d
 
 
 @inner
@@ -228,17 +226,21 @@ def residual(A, x, w, T, t, k, rows, n_dof, R):
     q, v, a, lam = x.q, x.v, x.a, x.lam
     zero = R[0] * 0.0
     for i in rows:
-        g, vHv, grad, _, _, _ = _row(A, i, q, v, a)
         con = A.con[i]
+        g = zero
+        vHv = zero
         Ja = zero
         Jv = zero
         for side in range(2):
+            sign, gs, vHvs, grad, _, _, _, d = _side(A, i, side, q, v, a)
+            g += sign * gs
+            vHv += sign * vHvs
             for j in range(6):
-                d = A.dofs[i, side, j]
-                if d >= 0:
-                    Ja += grad[side][j] * a[d]
-                    Jv += grad[side][j] * v[d]
-                    R[d] += w.wl * grad[side][j] * lam[con]
+                if d[j] >= 0:
+                    gj = sign * grad[j]
+                    Ja += gj * a[d[j]]
+                    Jv += gj * v[d[j]]
+                    R[d[j]] += w.wl * gj * lam[con]
         Fc = (-vHv + T.cdd[t, k, i] - w.b1 * (Jv - T.cd[t, k, i])
               - w.b0 * (g - T.c[t, k, i]))
         R[n_dof + con] += w.scale * (w.wcm * Ja - w.wcf * Fc)
@@ -254,17 +256,19 @@ def matrix(A, x, w, C, out):
     q, v, a, lam = x.q, x.v, x.a, x.lam
     scale, ccm, ccf, cl = w.scale, w.wcm, w.wcf, w.wl
     for i in range(A.kind.shape[0]):
-        _, _, grad, Hv, Ha, dvHv = _row(A, i, q, v, a)
+        kind = A.kind[i]
+        lam_i = lam[A.con[i]]
         for side in range(2):
+            sign, _, _, grad, Hv, Ha, dvHv, d = _side(A, i, side, q, v, a)
             for j in range(6):
-                if A.dofs[i, side, j] < 0:
+                if d[j] < 0:
                     continue
-                gr = grad[side][j]
+                gr = sign * grad[j]
                 # constraint row: d/da of wcm J a - wcf F_c
-                dFc_dq = -dvHv[side][j] - w.b1 * Hv[side][j] - w.b0 * gr
-                dFc_dv = -2.0 * Hv[side][j] - w.b1 * gr
+                dFc_dq = -(sign * dvHv[j]) - w.b1 * (sign * Hv[j]) - w.b0 * gr
+                dFc_dv = -2.0 * (sign * Hv[j]) - w.b1 * gr
                 x0 = scale * ccm * gr
-                xq = scale * (ccm * Ha[side][j] - ccf * dFc_dq)
+                xq = scale * (ccm * (sign * Ha[j]) - ccf * dFc_dq)
                 xv = -scale * ccf * dFc_dv
                 p = A.row[i, side, j]
                 if p >= 0:
@@ -274,16 +278,11 @@ def matrix(A, x, w, C, out):
                 if p >= 0:
                     for r in range(C.shape[0]):
                         out[r, p] += C[r, 0] * cl * scale * gr
-        kind = A.kind[i]
-        if kind != ROW_X and kind != ROW_Y:
-            continue
-        # the Hessian terms bh2 cl lam H belong to Dq alone
-        lam_i = lam[A.con[i]]
-        for side in range(2):
-            if A.dofs[i, side, 0] < 0 and A.dofs[i, side, 2] < 0:
+            if kind != ROW_X and kind != ROW_Y:
                 continue
-            d = (A.dofs[i, side, 0], A.dofs[i, side, 1], A.dofs[i, side, 2],
-                 A.dofs[i, side, 3], A.dofs[i, side, 4], A.dofs[i, side, 5])
+            # the Hessian terms bh2 cl lam H belong to Dq alone
+            if d[0] < 0 and d[2] < 0:
+                continue
             h22, h23, h24 = side_hessian(kind, d, A.u0[i, side, 0], A.u0[i, side, 1], q)
             sg = 1.0 if side == 0 else -1.0
             for r in range(C.shape[0]):
@@ -293,7 +292,7 @@ def matrix(A, x, w, C, out):
                 add_hessian(A.H[i, side], h22, h23, h24, coef, out[r])
 
 
-@inner
+@inlined
 def add_hessian(hmap, h22, h23, h24, coef, data):
     """Add ``coef H`` of one side to ``data`` at the positions ``hmap[j, k]`` (6, 6)."""
     for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):
@@ -311,12 +310,13 @@ def values(A, q, v, T, k, phi, phid):
         return
     zero = q[0] * 0.0
     for i in range(A.kind.shape[0]):
-        g, _, grad, _, _, _ = _row(A, i, q, v, v)
+        g = zero
         Jv = zero
         for side in range(2):
+            sign, gs, _, grad, _, _, _, d = _side(A, i, side, q, v, v)
+            g += sign * gs
             for j in range(6):
-                d = A.dofs[i, side, j]
-                if d >= 0:
-                    Jv += grad[side][j] * v[d]
+                if d[j] >= 0:
+                    Jv += sign * grad[j] * v[d[j]]
         phi[A.con[i]] = g - T.c[0, k, i]
         phid[A.con[i]] = Jv - T.cd[0, k, i]
