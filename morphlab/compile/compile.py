@@ -24,6 +24,7 @@ from .checks import check_initial, check_rank
 from .design import flatten
 from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
+from .record import counts, entry, replay
 from .system import System
 
 
@@ -92,7 +93,8 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     like : System, optional
         A system of the same topology (a perturbed design): its step-matrix pattern is reused
         when the DOF, item and topology tables are equal (they are compared, and the pattern is
-        built afresh when they are not).
+        built afresh when they are not), and its beams whose inputs are unchanged are copied
+        instead of compiled (:mod:`morphlab.compile.record`).
     on_built : callable, optional
         Called with the system as soon as its arrays are built, before the checks below run
         the first kernels.
@@ -112,8 +114,17 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
     b = Builder(model, dt)
+    record = {}
     for item in items_of(model):
-        compile_item(item, b)
+        if isinstance(item, Beam):  # a beam like's record holds unchanged is copied
+            if like is not None and replay(item, b, like):
+                record[item.name] = like.record[item.name]
+                continue
+            before = counts(b)
+            compile_item(item, b)
+            record[item.name] = entry(item, b, before)
+        else:
+            compile_item(item, b)
     arrays = b.arrays(model.gravity)
     n_dof, n_con = len(b.dof_names), len(b.con_names)
     same = like is not None and _same_topology(arrays, n_dof, n_con, like)
@@ -136,7 +147,8 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
         con_kind=np.array(b.con_kind, dtype=np.int64),
         con_item=np.array(b.con_item, dtype=np.int64),
         con_sign=np.array(b.con_sign, dtype=np.float64),
-        con_side=np.array(b.con_side, dtype=np.int64), length_scale=_length_scale(model))
+        con_side=np.array(b.con_side, dtype=np.int64), length_scale=_length_scale(model),
+        record=record)
     if on_built is not None:
         on_built(system)
     # a complex-step perturbation of ``like``: its real parts are those of ``like`` (to

@@ -133,6 +133,9 @@ class System:
     con_sign: np.ndarray = field(default_factory=lambda: np.zeros(0))
     con_side: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     length_scale: float = 1.0
+    #: What each beam contributed, for the compiles of other designs of this model
+    #: (:mod:`morphlab.compile.record`): beam name -> :class:`~morphlab.compile.record.Entry`.
+    record: dict = field(default_factory=dict, repr=False)
 
     @property
     def n(self) -> int:

@@ -306,10 +306,10 @@ def _touched(sys0: System, ps) -> tuple:
             r = r + 1j * (rng.standard_normal(x.shape) + 1.0)
         return r.astype(x.dtype)
 
-    def noise(times):
+    def noise(times):  # random values at the one time index the probe reads (k = 0)
         if times is None:
             return None
-        return type(times)(*(None if t is None else type(t)(*(random(x) for x in t))
+        return type(times)(*(None if t is None else type(t)(*(random(x[:, :1]) for x in t))
                              for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))

@@ -1,0 +1,101 @@
+"""The compile record: what each beam of a compiled model contributed, so that another design of
+the same model (a sensitivity run's perturbed designs, a finite-difference step) copies the
+beams whose inputs did not change instead of compiling them again.
+
+A beam is most of a model's compile time (its frames, elements and frame joints), and most
+design variables leave it alone (a joint point, a torque, a rigid body). The record lives on
+the :class:`~morphlab.compile.system.System` (``system.record``), so it is explicit and shared
+by nothing else: compiling from two threads is safe. A beam is copied only when every input it
+was compiled from is equal (the same numbers, a complex part included) and the builder stands
+where it stood when the beam was compiled (the same DOFs, rows and constraint rows before it);
+the copy is then the compile's own output, bit for bit (``tests/test_compile_record.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from ..kernels.schema import DESIGN, KINDS, TIME, TOPOLOGY
+
+#: Attributes of a beam that are not inputs of its compile.
+_NOT_INPUTS = {"_model", "name"}
+
+
+class Entry(NamedTuple):
+    """What one beam contributed: its ``inputs`` (attribute values), the builder's counts
+    ``before`` and ``after`` it (:func:`counts`), its body information and the function that
+    finds its material points."""
+
+    inputs: dict
+    before: tuple
+    after: tuple
+    info: object
+    locate: Callable
+
+
+def counts(b) -> tuple:
+    """Where the builder ``b`` stands: DOFs, rows of each table, constraint rows."""
+    return (len(b.dof_names), tuple(t.n for t in b.tables.values()), len(b.con_names))
+
+
+def inputs(beam) -> dict:
+    """The values a beam is compiled from (its attributes but its name and model)."""
+    return {k: v for k, v in vars(beam).items() if k not in _NOT_INPUTS}
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and a.dtype.kind in "biufc" and b.dtype.kind in "biufc" \
+            and bool(np.array_equal(a, b))
+    try:
+        return bool(a == b) and type(a) is type(b)
+    except (TypeError, ValueError):
+        return False
+
+
+def same_inputs(a: dict, b: dict) -> bool:
+    """Are two beams' inputs equal (every attribute, complex parts included)?"""
+    return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+
+
+def entry(beam, b, before: tuple) -> Entry:
+    """The record of ``beam``, just compiled into ``b`` from the counts ``before``."""
+    return Entry(inputs(beam), before, counts(b), b.bodies[beam.name], b.locate[beam.name])
+
+
+def replay(beam, b, like) -> bool:
+    """Copy ``beam``'s contribution from the compiled system ``like`` into the builder ``b``
+    when its record there applies (module docstring); returns whether it did."""
+    rec = like.record.get(beam.name)
+    if rec is None or counts(b) != rec.before or not same_inputs(rec.inputs, inputs(beam)):
+        return False
+    d0, d1 = rec.before[0], rec.after[0]
+    b.dof_names += like.dof_names[d0:d1]
+    b.q0 += list(like.q0[d0:d1])
+    b.v0 += list(like.v0[d0:d1])
+    for (name, table), n0, n1 in zip(b.tables.items(), rec.before[1], rec.after[1]):
+        if n1 == n0:
+            continue
+        arrays = like.table(name)
+        kind = KINDS[name]
+        values = {f.name: getattr(arrays, f.name)[n0:n1] for f in kind.fields
+                  if f.role in (DESIGN, TOPOLOGY)}
+        base = like.time_base[name][n0:n1] if any(f.role == TIME for f in kind.fields) else None
+        first = table.add(like.names[name][n0:n1], base=base, count=n1 - n0, **values)
+        for i, prof in like.time_profiles.get(name, ()):
+            if n0 <= i < n1:
+                table.profiles.append((first + i - n0, prof))
+    c0, c1 = rec.before[2], rec.after[2]
+    b.con_names += like.con_names[c0:c1]
+    b.con_joint += like.con_joint[c0:c1]
+    b.con_sign += list(like.con_sign[c0:c1])
+    b.con_side += list(like.con_side[c0:c1])
+    b.con_kind += list(like.con_kind[c0:c1])
+    b.con_item += list(like.con_item[c0:c1])
+    b.bodies[beam.name] = rec.info
+    b.locate[beam.name] = rec.locate
+    return True
