@@ -309,22 +309,20 @@ def test_refinement_residuals_at_round_off(name):
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
 @pytest.mark.parametrize("name", CASES)
 def test_chunking_does_not_change_the_sensitivities(monkeypatch, name, scheme):
-    """The time loop runs compiled chunks of steps (``CHUNK_SECONDS`` of work each) and the
+    """The time loop runs compiled chunks of steps (``Settings.chunk_seconds`` of work each) and the
     sensitivities of a chunk's steps right after it: the same kernels on the same data,
     called at other times, so one step per chunk and the whole run in one chunk give the same
     numbers bit for bit, in both variants. For the sparse path as well (``dense_max=0``) and
     for the paper's weighting, whose residual also reads the state at the start of each step
     (for a chunk's first step that state belongs to the previous chunk)."""
-    import morphlab.solve.timeloop as timeloop
-
     build, p0, resp = responses_for(name)
     for dense_max in (1000, 0):
         for method in (Direct(), EXACT):
             runs = []
             for seconds in (1e9, 0.0):  # the whole run in one chunk / a step per chunk
-                monkeypatch.setattr(timeloop, "CHUNK_SECONDS", seconds)
                 runs.append(ml.sensitivities(build, p0, resp, method=method, store="all",
-                                             scheme=scheme, dense_max=dense_max, **RUN))
+                                             scheme=scheme, dense_max=dense_max,
+                                             chunk_seconds=seconds, **RUN))
             assert runs[1].gradients == runs[0].gradients
             for key in ("q", "v", "a", "lam"):
                 np.testing.assert_array_equal(runs[1].state[key], runs[0].state[key])

@@ -47,7 +47,7 @@ def test_violations_without_the_velocities_are_those_of_the_full_run(monkeypatch
     if CHUNKS[chunks] is None:
         kw["compiled_newton"] = False
     elif CHUNKS[chunks] != "default":
-        monkeypatch.setattr(ml.solve.timeloop, "CHUNK_SECONDS", CHUNKS[chunks])
+        kw["chunk_seconds"] = CHUNKS[chunks]
     full = ml.simulate(flexible_mechanism(), **RUN)
     assert full.constraint_violation.max() > 0.0 and full.velocity_violation.max() > 0.0
     some = ml.simulate(flexible_mechanism(), store=("q",), **kw)

@@ -73,6 +73,10 @@ class Settings:
     compiled_newton : bool
         Run the Newton loop of a step in one compiled call once the factorization has settled
         (the same iterates as the loop from Python, which remains for ``False``).
+    chunk_seconds : float
+        Work of one compiled chunk of steps [s of wall time]: between chunks the run checks
+        for an interrupt and reports progress; 0 gives one step per chunk. The results do not
+        depend on it.
     checks : {"warn", "raise", "off"}
         What a finished run does when one of its own checks fails (constraint drift beyond
         ``constraint_tol``, unbounded growth, implausible deformation or stress:
@@ -100,6 +104,7 @@ class Settings:
     newton: str = "full"
     dense_max: int = DENSE_MAX
     compiled_newton: bool = True
+    chunk_seconds: float = 0.1
     checks: str = "warn"
     constraint_tol: float = 1e-3
     kinematic_tol: float | None = KINEMATIC_TOL
@@ -172,6 +177,9 @@ class Settings:
                                  f"{getattr(self, name)!r}")
         if not (_is_int(self.dense_max) and self.dense_max >= 0):
             raise ModelError(f"dense_max must be an integer >= 0, got {self.dense_max!r}")
+        if not (_is_real(self.chunk_seconds) and 0.0 <= self.chunk_seconds < np.inf):
+            raise ModelError(f"chunk_seconds must be a finite number >= 0, got "
+                             f"{self.chunk_seconds!r}")
         if not (_is_real(self.constraint_tol) and 0 < self.constraint_tol < 1):
             raise ModelError(f"constraint_tol must be a number in (0, 1), got "
                              f"{self.constraint_tol!r}")

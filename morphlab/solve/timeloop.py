@@ -38,9 +38,6 @@ from .settings import Settings, State
 from .stepper import StepOutcome, Stepper
 from .store import HISTORIES, HistoryStore, check_memory
 
-#: Wall time a compiled chunk of steps aims at [s] (the progress report's and Ctrl-C's grain).
-CHUNK_SECONDS = 0.1
-
 
 @dataclass
 class StepInfo:
@@ -256,7 +253,11 @@ class _Loop:
         """Steps from ``n`` in one compiled call; returns the next step to solve (a step
         that needs Python: a new sparse row order)."""
         stp, nw = self.stepper, self.stepper.newton
-        size = 8 if self.per_step is None else max(1, int(CHUNK_SECONDS / self.per_step))
+        seconds = self.settings.chunk_seconds  # the work of a chunk (its wall time)
+        if self.per_step is None:  # before a step was timed: a few steps
+            size = 8 if seconds > 0 else 1
+        else:
+            size = max(1, int(seconds / self.per_step))
         k1 = min(self.n_steps + 1, n + size)
         keep = None
         if self.hook is not None:
