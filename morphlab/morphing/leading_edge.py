@@ -20,87 +20,12 @@ Joints: revolute A (ground–crank), revolute B (crank–link_C) and weld B (cra
 C (link_C–skin), revolute D (arm–link_E), revolute E (link_E–skin). Moving A (design variables
 ``x_A``, ``y_A``) changes the crank only (it spans A -> B, B stays).
 
-Mechanism (how the numbers were found; the tools are in :mod:`morphlab.morphing.design`)
----------------------------------------------------------------------------------------
-The mechanism is designed backwards from the target shape, on the skin the study uses (the
-accurate one, one chord frame per element), whose statics are geometrically nonlinear:
-
-1. :func:`~morphlab.morphing.design.fit_link_forces`: for a pair of skin nodes (C upper, E
-   lower) the two force vectors whose static equilibrium of the skin alone (F clamped, G
-   sliding) best reproduces the target nodes (least squares, with a tiny ridge term against
-   forces that only stretch the skin). Gauss–Newton on the skin's nonlinear statics, started
-   from the linear fit of the single-frame skin and with the exact Jacobian of complex-step
-   statics. Over C = 3..7, E = 21..24 the fit is best with E at node 24 (RMS 0.020 to 0.032
-   mm, against 0.05 to 0.06 mm at node 21); C = node 4, E = node 24 gives RMS 0.0199 mm, max
-   0.0398 mm, 77.7 MPa, with 1.27 kN at C and 2.12 kN at E. The linear fit of the same pair on
-   the single-frame skin predicts 0.099 mm: on that skin the error of the single frame (a few
-   tenths of a millimetre, below), not what two forces can do, limits the fit.
-2. :func:`~morphlab.morphing.design.inverse_mechanism`: the links are two-force members, so
-   in the fitted state each lies along its force. The crank is in equilibrium when the moment
-   of the two skin forces about A equals the torque (``CRANK_SENSE * M_t``), which puts A on a
-   line; for a chosen ``x_A`` on that line and a crank rotation ``delta``, B and D follow from
-   rotating the morphed crank back by ``delta`` under the condition that each link keeps its
-   length (one linear equation per link). The multibody equilibrium at ``M_t`` is then the
-   fitted shape: the skin carries the same two forces as in the fit.
-3. Not every such mechanism reaches that state under a growing torque: its torque–angle path
-   (:func:`~morphlab.morphing.design.torque_angle_curve`, static with the crank angle
-   prescribed) must rise, or the crank snaps through.
-   :func:`~morphlab.morphing.design.design_report` accepts a candidate whose path rises with
-   at least 40 % of its mean slope up to the design angle and keeps rising to 1.3 times it,
-   with the pivots A, B, D at least 5 mm inside the skin at all times, no link crossing the
-   skin, crank arms >= 8 mm and links >= 20 mm. A scan of clockwise cranks (``sense=-1``)
-   for this pair found none that passes. At ``x_A`` = 104.5 mm, of ``delta`` = 0.55, 0.575,
-   0.6 and 0.625 rad the checks accept 0.575 and 0.6:
-
-   ======  ========  ===============  =========  ===============  ==========  ==========
-   delta   overload  stress exponent  min slope  joint clearance  arms AB, AD  links C, E
-   ======  ========  ===============  =========  ===============  ==========  ==========
-   0.575   1.20      1.40             0.55       5.5 mm           8.9, 27.9   49.3, 53.8
-   0.600   1.31      1.02             0.62       7.9 mm           8.4, 21.1   48.8, 46.9
-   ======  ========  ===============  =========  ===============  ==========  ==========
-
-   (overload: the torque, in units of ``M_t``, that turns the crank 30 % beyond its design
-   angle; stress exponent: d ln(sigma_max) / d ln(M) along the path at ``M_t``; min slope:
-   the path's weakest slope over its mean; lengths in mm.) Selected for the largest overload
-   (``select="overload"``) the design would be 0.6 rad. The study takes 0.575 rad
-   (``select="stress_exponent"``, the default of ``design_report``):
-   its stress grows clearly faster than the torque, as in the paper (M_t dsigma/dM_t = 266 >
-   150 MPa there), so that by ``E dsigma/dE + M_t dsigma/dM_t = sigma`` (the state depends on
-   M_t/E only) the stress falls with E as in the paper's Table 1; at 0.6 rad the exponent is
-   1.02, and the sign of dsigma/dE would rest on 2 %. The price is margin: 1.20 instead of
-   1.31 ``M_t`` turns the crank 30 % past its design angle (the shape moves more under an
-   overload), the path's weakest slope is lower and the joints clear the skin by 5.5 instead
-   of 7.9 mm. The coordinates are the candidate's output rounded to 0.01 mm.
-
-Rounding and the shape error's torque derivative: at an exact inverse design the fitted shape
-is the equilibrium at ``M_t`` and minimises the shape error over all link forces, so the shape
-error is stationary along the states the torque reaches: d(e_rms)/dM_t = 0 there. Rounding
-moves the morphed nodes by a few micrometres and the crank's end angle to 0.576 rad; the
-smallest e_rms then lies about 0.1 % below ``M_t``, and at ``M_t`` the skin has moved a little
-past it. The minimum is sharp (e_rms = 0.0201 mm at ``M_t``, 0.0220 / 0.0212 mm at 0.996 /
-1.002 ``M_t``, 0.032 / 0.034 mm at -/+ 1 %), so this small offset gives Table 1's
-M_t de_rms/dM_t = +0.22 mm: its sign (the paper's) is a property of the rounding, not of the
-design, and its size of how narrow the minimum is.
-
-Numbers (defaults, :data:`SETTINGS`)
-------------------------------------
-* target droop 6 mm (:data:`morphlab.morphing.airfoil.DEFAULT_DROOP_MM`, chosen as in
-  ``docs/theory.md`` §9.4);
-* the accurate skin (the default, ``skin="accurate"``): KS max stress 78.33 MPa (exact max
-  77.87 MPa), RMS shape error 0.0201 mm, max 0.0400 mm (node 8); kinematic error estimate
-  0.0006 mm, the skin keeps its length to 0.001 mm, largest node rotation 0.098 rad; 300
-  steps at 1.8 Newton iterations per step (run times: BENCHMARKS.md); paper: 149.96 MPa,
-  0.6348 mm, 1.185 mm. Yield of 6061-T6: >= 240 MPa;
-* the paper's single-frame skin (``skin="paper"``) with the same mechanism: KS 80.15 MPa, RMS
-  0.134 mm, max 0.303 mm (at the nose, node 15); the crank stops at 0.558 rad instead of
-  0.576; largest node rotation 0.097 rad relative to the frame, so the skin polygon grows
-  spuriously by 0.513 mm (~ phi²/2 of each element) and its nodes lie up to 0.30 mm (0.14 mm
-  RMS) from the accurate skin's: the linearization error of the single frame is several
-  times the shape error (``docs/theory.md`` §2.10, ``docs/frames.md``);
-* ``tests/test_morphing_model.py`` checks the end state against :func:`morphlab.static` at
-  ``t_end``, the energy balance of the run, the responses under a halved ``dt``, a 60-element
-  skin (C and E at the same material points) and Table 1 against the complex step of the
-  whole run.
+The mechanism's points were designed backwards from the target shape
+(:mod:`morphlab.morphing.design`); how, with the candidates' figures and the study's results on
+the defaults, is in ``docs/morphing.md``. ``morphlab morphing`` computes and prints the current
+results (``morphing.json``); ``tests/test_morphing_model.py`` checks the end state against
+:func:`morphlab.static`, the energy balance, the responses under a halved ``dt``, a 60-element
+skin and Table 1 against the complex step of the whole run.
 
 Units: mm, t, s, N, N·mm, MPa.
 """
