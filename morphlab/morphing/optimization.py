@@ -23,6 +23,7 @@ variables about a design and two failure events: the KS skin stress above
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -32,6 +33,7 @@ from ..model import Model
 from ..solve.settings import Settings
 from ..studies.problem import Constraint, Problem
 from . import leading_edge as le
+from .optimizers import COMPARED, compare_optimizers, reached  # noqa: F401
 
 #: Thickness zones along the skin arc.
 ZONES = 6
@@ -228,42 +230,6 @@ def verify(p: dict, *, n_elements: int = le.N_ELEMENTS,
             "hold_rotation": hold, "status": res.status, "ok": bool(ok)}
 
 
-def reached(result, target: float) -> dict:
-    """Runs, simulations and time [s] an optimization took until a feasible evaluation's
-    objective was at most ``target`` (None each when it never was)."""
-    sims = 0
-    for ev in result.history.evaluations:
-        sims += ev["simulations"] if ev["new"] else 0
-        if ev["max_violation"] <= result.info["feasibility_tol"] and ev["objective"] <= target:
-            runs = sum(1 for e in result.history.evaluations[:result.history.evaluations.index(
-                ev) + 1] if e["new"])
-            return {"runs": runs, "simulations": sims, "time": ev["time"]}
-    return {"runs": None, "simulations": None, "time": None}
-
-
-def compare_optimizers(pb: Problem, *, maxiter: int = 60, free_runs: int = 400,
-                       fd_runs: int | None = None, progress=False) -> dict:
-    """The problem solved three ways: SLSQP with exact (direct) gradients, SLSQP with
-    forward-difference gradients (at most ``fd_runs`` runs, each a design and its difference
-    steps; None: SLSQP's own limits) and COBYLA (derivative-free, at most ``free_runs`` runs).
-    Each entry holds the OptimizationResult and what it took to reach the exact solution's
-    objective to within 0.1 % of the improvement it made (:func:`reached`)."""
-    from ..studies.optimize import optimize
-
-    opts = {"ftol": 1e-7, "maxiter": maxiter}
-    out = {"exact": optimize(pb, "SLSQP", options=opts, progress=progress)}
-    out["finite_difference"] = optimize(pb, "SLSQP", gradient="finite-difference",
-                                        max_runs=fd_runs, options=opts, progress=progress)
-    out["derivative_free"] = optimize(pb, "COBYLA", max_runs=free_runs,
-                                      options={"rhobeg": 0.1, "maxiter": free_runs},
-                                      progress=progress)
-    start_value = out["exact"].history.evaluations[0]["objective"]
-    best = out["exact"].objective
-    target = best + 1e-3 * (start_value - best)
-    return {k: {"result": r, "to_target": reached(r, target), "target": target}
-            for k, r in out.items()}
-
-
 def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS,
                     settings: dict | Settings | None = None):
     """First-order second-moment propagation of :data:`TOLERANCES` at design ``p``: one
@@ -284,14 +250,17 @@ def tolerances_fosm(p: dict, *, n_elements: int = le.N_ELEMENTS,
 
 def tolerances_monte_carlo(p: dict, n: int, *, seed: int = 0, executor=None,
                            n_elements: int = le.N_ELEMENTS,
-                           settings: dict | Settings | None = None):
+                           settings: dict | Settings | None = None,
+                           progress: bool | Callable[[int, int], object] = False):
     """Monte Carlo check of :func:`tolerances_fosm`: ``n`` designs drawn from independent
     normal distributions of :data:`TOLERANCES` about ``p``, run through
     :func:`morphlab.studies.sweep` (a local process pool by default; any executor, e.g. a
     Dask client's). Returns ``(stats, table)``: per response the sample ``mean`` and ``std``
     with 95 % BCa bootstrap intervals (``mean_ci``, ``std_ci``: they hold for skewed
     responses, unlike a chi-square interval; :mod:`morphlab.studies.statistics`), the
-    fraction beyond the allowables, and the :class:`~morphlab.studies.SweepResult`."""
+    fraction beyond the allowables, and the :class:`~morphlab.studies.SweepResult`.
+    ``progress``: a progress bar of the ``n`` runs, or ``progress(n_done, n_total)``
+    (:func:`~morphlab.studies.sweep`)."""
     from ..studies import SimulationTask, monte_carlo, normal, sweep
     from ..studies.statistics import mean_std
 
@@ -300,7 +269,7 @@ def tolerances_monte_carlo(p: dict, n: int, *, seed: int = 0, executor=None,
         if k not in designs:
             designs[k] = np.full(n, float(v))
     task = SimulationTask(_Zoned(n_elements), RESPONSES, _settings(settings))
-    table = sweep(task, designs, executor=executor)
+    table = sweep(task, designs, executor=executor, progress=progress)
     out = {"n": int(np.sum(table.ok)), "failed": int(np.sum(~table.ok))}
     for k in RESPONSES:
         out[k] = mean_std(table.values[k][table.ok], 0.95, seed=seed)

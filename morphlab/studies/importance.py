@@ -16,6 +16,8 @@ component k), and the coefficient of variation ``SE / P_f`` (e.g. Melchers & Bec
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.special import ndtri
 
@@ -34,7 +36,8 @@ def _weights(U: np.ndarray, centres: list[np.ndarray]) -> np.ndarray:
 
 
 def importance_sampling(task, distributions, result: ReliabilityResult, n: int, *,
-                        fixed=None, seed=0, executor=None, confidence: float = 0.95
+                        fixed=None, seed=0, executor=None, confidence: float = 0.95,
+                        progress: bool | Callable[[int, int], object] = False
                         ) -> ReliabilityResult:
     """Importance sampling around the design points of a FORM result (module docstring).
 
@@ -55,6 +58,9 @@ def importance_sampling(task, distributions, result: ReliabilityResult, n: int, 
         As for :func:`~.sweep.sweep`.
     confidence : float
         Of the intervals ``p_is ± z SE`` (normal approximation).
+    progress : bool or callable
+        Of the draws' sweep (:func:`~.sweep.sweep`): a progress bar, or ``progress(n_done,
+        n_total)``.
 
     Returns
     -------
@@ -83,7 +89,7 @@ def importance_sampling(task, distributions, result: ReliabilityResult, n: int, 
                        + rng.standard_normal((n, len(dist)))))
     U = np.concatenate([b[2] for b in blocks])
     table = sweep(values_only(task), _designs(dist, fixed, dist.from_standard(U)),
-                  executor=executor)
+                  executor=executor, progress=progress)
     z = float(ndtri(0.5 + confidence / 2.0))
     for j, (key, comp, u) in enumerate(blocks):
         ls = result.limit_states[key]

@@ -21,6 +21,7 @@ out whole.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,7 +114,8 @@ def estimates(fA: np.ndarray, fB: np.ndarray, fAB: np.ndarray) -> np.ndarray:
 
 
 def sobol_indices(task, distributions, n: int, *, fixed=None, executor=None, seed=0,
-                  confidence: float = 0.95, n_resamples: int = 999) -> SobolIndices:
+                  confidence: float = 0.95, n_resamples: int = 999,
+                  progress: bool | Callable[[int, int], object] = False) -> SobolIndices:
     """First- and total-order Sobol' indices of every response of ``task``.
 
     Parameters
@@ -135,6 +137,9 @@ def sobol_indices(task, distributions, n: int, *, fixed=None, executor=None, see
         Of the intervals.
     n_resamples : int
         Bootstrap resamples.
+    progress : bool or callable
+        Of the sweep of the ``n (d + 2)`` runs (:func:`~.sweep.sweep`): a progress bar, or
+        ``progress(n_done, n_total)``.
 
     Returns
     -------
@@ -154,7 +159,8 @@ def sobol_indices(task, distributions, n: int, *, fixed=None, executor=None, see
     d = len(dist)
     A, B, AB = saltelli_matrices(dist, n, seed)
     X = np.concatenate([A, B, AB.reshape(d * n, d)])
-    table = sweep(values_only(task), _designs(dist, fixed, X), executor=executor)
+    table = sweep(values_only(task), _designs(dist, fixed, X), executor=executor,
+                  progress=progress)
     ok = np.asarray(table.ok).reshape(d + 2, n).all(axis=0)
     if ok.sum() < 4:
         raise StudyError(f"only {int(ok.sum())} of {n} rows ran without failure: "

@@ -43,7 +43,8 @@ METHODS = ("fosm", "monte-carlo", "form", "importance-sampling")
 def propagate(task, distributions, method: str = "monte-carlo", *,
               allowables: Mapping | None = None, fixed: Mapping | None = None,
               n: int | None = None, sampling: str = "lhs", seed=0, executor=None,
-              confidence: float = 0.95, form_options: SearchOptions | None = None):
+              confidence: float = 0.95, form_options: SearchOptions | None = None,
+              progress: bool = False):
     """Distributions of the responses of ``task`` under random variables.
 
     Parameters
@@ -75,6 +76,11 @@ def propagate(task, distributions, method: str = "monte-carlo", *,
         Of the intervals.
     form_options : SearchOptions, optional
         Stopping rules of the FORM search.
+    progress : bool
+        Report the runs as they finish: a progress bar for the sweeps of Monte Carlo samples
+        and importance-sampling draws, a line per round for the FORM search. (A function
+        instead of the printed lines: ``progress=`` of :func:`~.sweep.sweep`,
+        :func:`~.reliability.form` or :func:`~.importance.importance_sampling`.)
 
     Returns
     -------
@@ -88,6 +94,9 @@ def propagate(task, distributions, method: str = "monte-carlo", *,
     fixed = _check_fixed(fixed, dist.names)
     confidence = _check_confidence(confidence)
     allowables = check_allowables(allowables)
+    if not isinstance(progress, bool):
+        raise StudyError(f"progress must be True or False, got {progress!r} (for a function, "
+                         "call sweep, form or importance_sampling with progress=function)")
     if method == "fosm":
         return _fosm(task, dist, fixed, allowables, executor)
     if method == "monte-carlo":
@@ -96,17 +105,17 @@ def propagate(task, distributions, method: str = "monte-carlo", *,
         _count(n, "Monte Carlo needs n, the number of samples")
         table = sweep(values_only(task), {**sample(dist, n, sampling, seed=seed),
                                           **{k: np.full(n, v) for k, v in fixed.items()}},
-                      executor=executor)
+                      executor=executor, progress=progress)
         return sample_result(table, dist.names, allowables, confidence, seed,
                              f"monte-carlo ({sampling})")
     if method == "importance-sampling":
         _count(n, "importance sampling needs n, the draws per limit state")
     result = form(task, dist, allowables, fixed=fixed, executor=executor,
-                  options=form_options)
+                  options=form_options, progress=progress)
     if method == "form":
         return result
     return importance_sampling(task, dist, result, n, fixed=fixed, seed=seed,
-                               executor=executor, confidence=confidence)
+                               executor=executor, confidence=confidence, progress=progress)
 
 
 def _count(n, what: str) -> None:

@@ -25,6 +25,7 @@ exceedance probability of a two-sided allowable is their sum.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -222,7 +223,8 @@ def _g(row, response, side, limit, names, jac):
 
 
 def form(task, distributions, allowables, *, fixed=None, start=None, executor=None,
-         options: SearchOptions | None = None) -> ReliabilityResult:
+         options: SearchOptions | None = None,
+         progress: bool | Callable[[dict], object] = False) -> ReliabilityResult:
     """FORM of every side of every allowable, with exact gradients (module docstring).
 
     Parameters
@@ -242,6 +244,11 @@ def form(task, distributions, allowables, *, fixed=None, start=None, executor=No
         As for :func:`~.sweep.sweep` (one process pool for the whole search by default).
     options : SearchOptions, optional
         Stopping rules (:class:`.form.SearchOptions`).
+    progress : bool or callable
+        True: one line, rewritten after every round of the searches, with the phase
+        (``"search"``, then ``"mirror"`` for the second modes), the round, the searches still
+        running and the gradient runs so far. A callable receives that record as a dict
+        (keys ``"phase"``, ``"round"``, ``"running"``, ``"searches"``, ``"runs"``) instead.
 
     Returns
     -------
@@ -253,20 +260,26 @@ def form(task, distributions, allowables, *, fixed=None, start=None, executor=No
     if not allowables:
         raise StudyError("FORM needs allowables {response: (lower, upper)}")
     options = options or SearchOptions()
+    if not (isinstance(progress, bool) or callable(progress)):
+        raise StudyError(f"progress must be True, False or a function (record), got "
+                         f"{progress!r}")
     task = with_gradients(task, dist.names)
     u0 = np.zeros(len(dist)) if start is None else dist.to_standard(
         np.array([[float(start[v]) for v in dist.names]]))[0]
     ex, owned = make_executor(executor)
+    evaluate = _Evaluator(task, dist, fixed, ex)
+    report = _Rounds(progress, evaluate, options.max_iter)
     try:
-        evaluate = _Evaluator(task, dist, fixed, ex)
         keys = _limit_states(allowables)
-        first = _run_searches(evaluate, dist, {key: u0 for key in keys}, options)
+        first = _run_searches(evaluate, dist, {key: u0 for key in keys}, options,
+                              report.phase("search"))
         second = {}
         if options.mirror:
             starts = {key: -st.u for key, (st, _) in first.items()
                       if st.grad is not None and np.linalg.norm(st.u) > 0}
-            second = _run_searches(evaluate, dist, starts, options)
+            second = _run_searches(evaluate, dist, starts, options, report.phase("mirror"))
     finally:
+        report.close()
         if owned:
             ex.shutdown(wait=True, cancel_futures=True)
     result = ReliabilityResult(list(dist.names), allowables, {}, runs=evaluate.runs)
@@ -278,13 +291,42 @@ def form(task, distributions, allowables, *, fixed=None, start=None, executor=No
     return result
 
 
-def _run_searches(evaluate, dist, starts: dict, options) -> dict:
+class _Rounds:
+    """FORM's progress (``progress`` of :func:`form`): a record per round of the searches,
+    printed as one line that each round rewrites, or given to the user's function."""
+
+    def __init__(self, progress, evaluate: _Evaluator, max_iter: int):
+        self.progress, self.evaluate, self.max_iter = progress, evaluate, max_iter
+        self.printed = False
+
+    def phase(self, name: str):
+        """The reporter of one phase's rounds: ``report(round, running, searches)``."""
+        def report(rnd: int, running: int, searches: int) -> None:
+            rec = {"phase": name, "round": rnd, "running": running, "searches": searches,
+                   "runs": self.evaluate.runs}
+            if callable(self.progress):
+                self.progress(rec)
+            elif self.progress:
+                print(f"\rFORM {name}: round {rnd}, {running} of {searches} searches running "
+                      f"(at most {self.max_iter} iterations each), {rec['runs']} gradient runs"
+                      "   ", end="", flush=True)
+                self.printed = True
+        return report
+
+    def close(self) -> None:
+        if self.printed:
+            print(flush=True)
+
+
+def _run_searches(evaluate, dist, starts: dict, options, report=None) -> dict:
     """Searches from ``starts[key]``, all in lock step: each round evaluates every pending
-    point once. Returns ``{key: (SearchState, runs)}``."""
+    point once, then calls ``report(round, running, searches)``. Returns ``{key:
+    (SearchState, runs)}``."""
     gens = {key: search(u0, options) for key, u0 in starts.items()}
     pending = {key: next(gen) for key, gen in gens.items()}
     runs = dict.fromkeys(starts, 0)
     done = {}
+    rnd = 0
     while pending:
         unique = {}
         for u in pending.values():
@@ -300,6 +342,9 @@ def _run_searches(evaluate, dist, starts: dict, options) -> dict:
             except StopIteration as stop:
                 done[key] = (stop.value, runs[key])
                 del pending[key]
+        rnd += 1
+        if report is not None:
+            report(rnd, len(pending), len(starts))
     return {key: done[key] for key in starts}
 
 
