@@ -20,6 +20,9 @@ from .encoding import Writer, decode, decode_profile
 # System fields with their own representation (everything else: arrays or plain JSON values)
 _SYSTEM_SPECIAL = ("model", "dtype", "bodies", "arrays", "design", "time_base",
                    "time_profiles", "names")
+# System fields that are not part of the file: the compile record is a cache of the compile
+# (a loaded System compiles its designs from scratch)
+_NOT_SAVED = ("record",)
 
 
 def _body_params(body) -> tuple[str, dict]:
@@ -94,7 +97,7 @@ def system_meta(system: System, w: Writer) -> dict:
     sys_meta = {"dtype": np.dtype(system.dtype).str}
     for f in dataclasses.fields(system):
         val = getattr(system, f.name)
-        if f.name in _SYSTEM_SPECIAL:
+        if f.name in _SYSTEM_SPECIAL or f.name in _NOT_SAVED:
             continue
         if isinstance(val, np.ndarray):
             w.array(f"system/{f.name}", val)
