@@ -26,7 +26,7 @@ def test_drag_problem_is_the_design_problem_with_drag_as_objective():
     assert rows == {(r[0], r[1]) for r in base.rows} | {("hold_margin", "ineq")}
 
 
-def test_hold_margin_finds_the_snap_through_that_verify_misses():
+def test_hold_margin_and_verify_find_the_snap_through():
     start = ml.simulate(opt.build(opt.start()), settings=SETTINGS)
     snap = ml.simulate(opt.build(SNAP), settings=SETTINGS)
     # independent reading: the crank angle at the sample nearest the end of the ramp
@@ -38,9 +38,12 @@ def test_hold_margin_finds_the_snap_through_that_verify_misses():
     # by 0.37 rad after the ramp: far beyond the 0.005 rad limit
     assert 0.9 < ad.hold_margin(start) < 1.0
     assert ad.hold_margin(snap) < -100.0
-    # what verify() sees of it: nothing (it checks backward turning during the ramp only);
-    # what evaluate() adds: its end state lies millimetres from the statics next to it
-    assert opt.verify(SNAP, settings=SETTINGS)["ok"]
+    # verify() fails it on the rotation after the ramp alone (no backward turning during the
+    # ramp); evaluate() adds that its end state lies millimetres from the statics next to it
+    check = opt.verify(SNAP, settings=SETTINGS)
+    assert not check["ok"] and check["crank_reversal"] == 0.0
+    assert check["hold_rotation"] == pytest.approx(abs(theta[-1] - theta[k]), rel=1e-12)
+    assert opt.verify(opt.start(), settings=SETTINGS)["ok"]
     ev = ad.evaluate(SNAP, settings=SETTINGS, loads=False)
     assert ev["settled_mm"] > 1.0
     assert ad.evaluate(opt.start(), settings=SETTINGS, loads=False)["settled_mm"] < 1e-3

@@ -118,7 +118,7 @@ def test_results_move_into_an_existing_folder(tmp_path, monkeypatch, capsys):
         return "report"
 
     monkeypatch.setattr("morphlab.morphing.leading_edge.study", ok)
-    assert cli.main(["morphing", "--out", str(out)]) == 0
+    assert cli.main(["morphing", "--out", str(out), "--no-aero"]) == 0
     assert capsys.readouterr().out.strip() == "report"
     assert sorted(os.listdir(tmp_path)) == ["out"]
     assert (out / "morphing.json").read_text() == "new" and (out / "keep.txt").exists()
