@@ -16,3 +16,20 @@ def _compiled_kernels():
     import morphlab
 
     morphlab.warmup()
+
+
+@pytest.hookimpl(trylast=True)  # after -m and -k have deselected
+def pytest_collection_modifyitems(config, items):
+    """A notebook's reduced-size run (``test_notebook_runs``, ``MORPHLAB_QUICK=1``) is the
+    fast subset's stand-in for its default-size run (``test_notebook_full_size``, slow): the
+    same cells and assertions at a smaller size. Where a session runs both, the default-size
+    run alone is kept (the reduced one would only add minutes)."""
+    full = {item.callspec.id for item in items
+            if item.originalname == "test_notebook_full_size"}
+    if not full:
+        return
+    dropped = [item for item in items if item.originalname == "test_notebook_runs"
+               and item.callspec.id in full]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = [item for item in items if item not in dropped]

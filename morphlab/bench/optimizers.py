@@ -5,12 +5,12 @@ The morphing leading edge as a 13-variable design problem
 gradients, SLSQP with forward-difference gradients and COBYLA (derivative-free), by
 :func:`morphlab.morphing.optimization.compare_optimizers` with the notebook's default budget
 (60 SLSQP iterations, 400 COBYLA runs, finite differences within SLSQP's own limits). The
-notebook shows the comparison on a reduced budget; this case records the whole of it (it takes
-a quarter of an hour or more on two cores). For each optimizer: its end (status, objective,
-feasibility), its runs and primal simulations and wall time, and what it took to come within
-0.1 % of the exact-gradient optimum's improvement (:func:`~morphlab.morphing.optimization.
-reached`). The comparison runs once (``repeats`` does not apply): its figures are counts and
-one wall time each.
+notebook shows the comparison on a reduced budget; this case records the whole of it (about
+8 minutes on two cores, 7 of them the finite-difference run). For each optimizer: its end
+(status, objective, feasibility), its runs and primal simulations and wall time, and what it
+took to come within 0.1 % of the exact-gradient optimum's improvement
+(:func:`~morphlab.morphing.optimization.reached`). The comparison runs once (``repeats``
+does not apply): its figures are counts and one wall time each.
 """
 
 from __future__ import annotations
