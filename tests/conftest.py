@@ -1,4 +1,5 @@
 import os
+import signal
 import sys
 
 import matplotlib
@@ -16,6 +17,18 @@ def _compiled_kernels():
     import morphlab
 
     morphlab.warmup()
+
+
+@pytest.fixture(autouse=True)
+def _python_ctrl_c():
+    """Every test runs with Python's own Ctrl-C handler (KeyboardInterrupt), however the runner
+    was started: a shell's background job ignores SIGINT, and so do the pytest-xdist workers
+    and child processes it starts (an ignored signal stays ignored across exec, a handled one
+    is reset to the default). The tests of interrupts need the real behaviour."""
+    before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before if before is not None else signal.SIG_DFL)
 
 
 @pytest.hookimpl(trylast=True)  # after -m and -k have deselected
