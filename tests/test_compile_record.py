@@ -44,6 +44,48 @@ def test_a_perturbed_design_compiled_like_the_nominal_is_its_own_compile(nominal
     _assert_identical(like, fresh)
     copied = like.record["skin"] is nominal.record["skin"]
     assert copied == (variable not in ("t_w", "E")), variable
+    # a section variable (the thickness, the modulus) keeps the skin's layout: its rows are
+    # copied with the element data computed again, and its record holds the new inputs
+    section = like.record["skin"].info is nominal.record["skin"].info
+    assert section, variable
+    assert like.record["skin"].inputs["E"] == p["E"]
+
+
+def test_a_thickness_of_a_few_elements_is_a_section_copy_and_exact():
+    """One thickness variable of a few elements of a many-frame skin (the gradient bench's
+    problem): a section copy, equal to a compile from scratch bit for bit; its record serves a
+    further design compiled like it."""
+    from morphlab.bench.variables import problem
+
+    build, p0, _ = problem(20, n_elements=60)
+    nominal = ml.compile_model(build(p0))
+    name = next(k for k in p0 if k.startswith("t"))
+    p = dict(p0)
+    p[name] = p[name] + 1e-30j
+    like = ml.compile_model(build(p), like=nominal)
+    assert like.record["skin"].info is nominal.record["skin"].info
+    _assert_identical(like, ml.compile_model(build(p)))
+    other = [k for k in p0 if k.startswith("t")][-1]
+    q = dict(p)
+    q[other] = q[other] * 1.01 + 2e-30j  # a further section change, like the perturbed design
+    again = ml.compile_model(build(q), like=like)
+    assert again.record["skin"].info is nominal.record["skin"].info
+    _assert_identical(again, ml.compile_model(build(q)))
+    # a real design is not copied from a complex one (its imaginary parts would be dropped)
+    assert ml.compile_model(build(p0), like=like).record["skin"].info \
+        is not like.record["skin"].info
+
+
+def test_a_moved_node_compiles_the_beam_again(nominal):
+    """Node positions are not a section: the frames, their angles and joints move, so the skin
+    is compiled (not copied), and the system equals a compile from scratch."""
+    moved = le.build(le.DEFAULTS)
+    skin = next(b for b in moved.bodies if b.name == "skin")
+    skin.nodes = skin.nodes.copy()
+    skin.nodes[3] = skin.nodes[3] + np.array([1e-3, -2e-3])
+    like = ml.compile_model(moved, like=nominal)
+    assert like.record["skin"].info is not nominal.record["skin"].info
+    _assert_identical(like, ml.compile_model(moved))
 
 
 def test_a_beam_after_a_changed_item_is_compiled(nominal):

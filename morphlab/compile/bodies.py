@@ -8,6 +8,7 @@ Formulation: ``docs/theory.md`` §2 (body) and §3 (element).
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import NamedTuple
 
 import numpy as np
@@ -213,6 +214,50 @@ def _element_arrays(body: Beam, specs: list, dt) -> list:
         scal, *rest = (a[k:k + n] for a in arrays)
         out.append((scal.sum(axis=0), *rest))
         k += n
+    return out
+
+
+def _element_section(beam, n_el: int) -> np.ndarray:
+    """What each element's data are computed from, (5, n_el): ``rho A, E A, E I, E`` and the
+    fibre distance (``beam``: a Beam, or any object with its section attributes)."""
+    values = (beam.rho * beam.area, beam.E * beam.area, beam.E * beam.second_moment, beam.E,
+              beam.fibre)
+    return np.stack([np.broadcast_to(np.asarray(v), (n_el,)) for v in values])
+
+
+def section_rows(body: Beam, dt, like, starts: dict) -> dict:
+    """The rows of ``body`` that its section sets, ``{table: {field: values}}``, for a copy
+    of its compile in the system ``like`` (:mod:`morphlab.compile.record`) whose rows begin at
+    ``starts[table]``: each frame's invariants (``bodies.scal``; ``flex.IS, I0S, I0IS``) and
+    its elements' matrices and stress maps (``elements.M, St, K, B``). The frames whose
+    elements' section changed are computed as :func:`compile_beam` computes them (each
+    element's data depend on its own section and nodes only); the others are ``like``'s."""
+    specs = specs_of(body)
+    n_el = body.nodes.shape[0] - 1
+    before = SimpleNamespace(**like.record[body.name].inputs)
+    changed = np.any(_element_section(body, n_el) != _element_section(before, n_el), axis=0)
+    redo = [f for f, spec in enumerate(specs) if changed[spec.first:spec.last].any()]
+    bodies, flex, elements = (like.table(k) for k in ("bodies", "flex", "elements"))
+    b0, x0, e0 = starts["bodies"], starts["flex"], starts["elements"]
+    x1 = int(bodies.flex[b0 + len(specs) - 1, 1])
+
+    def rows(table, name, lo, hi):  # like's rows, as a new array of the compile's dtype
+        return np.array(getattr(table, name)[lo:hi], dtype=np.result_type(dt, np.float64))
+
+    out = {"bodies": {"scal": rows(bodies, "scal", b0, b0 + len(specs))},
+           "flex": {k: rows(flex, k, x0, x1) for k in ("IS", "I0S", "I0IS")},
+           "elements": {k: rows(elements, k, e0, e0 + n_el) for k in ("M", "St", "K", "B")}}
+    for f, (scal, IS, I0S, I0IS, Me, Se, Ke, Be) in zip(
+            redo, _element_arrays(body, [specs[f] for f in redo], dt)):
+        spec = specs[f]
+        f0, f1 = (int(i) for i in bodies.flex[b0 + f])
+        efd = elements.fdof[e0 + spec.first:e0 + spec.last]
+        out["bodies"]["scal"][f] = scal
+        for key, value in zip(("IS", "I0S", "I0IS"),
+                              _frame_invariants(efd, f0, f1 - f0, IS, I0S, I0IS, dt)):
+            out["flex"][key][f0 - x0:f1 - x0] = value
+        for key, value in zip(("M", "St", "K", "B"), (Me, Se, Ke, Be)):
+            out["elements"][key][spec.first:spec.last] = value
     return out
 
 

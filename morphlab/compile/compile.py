@@ -19,6 +19,7 @@ from ..kernels.system import KIND_NAMES, TIMED_NAMES
 from ..model import Beam, Model
 from ..model.profiles import Profile
 from . import bodies, forces, joints, loads  # noqa: F401 - they register the compile functions
+from .bodies import section_rows
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
 from .design import flatten
@@ -116,9 +117,10 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     b = Builder(model, dt)
     record = {}
     for item in items_of(model):
-        if isinstance(item, Beam):  # a beam like's record holds unchanged is copied
-            if like is not None and replay(item, b, like):
-                record[item.name] = like.record[item.name]
+        if isinstance(item, Beam):  # a beam like's record holds (or its section) is copied
+            copied = replay(item, b, like, section_rows) if like is not None else None
+            if copied is not None:
+                record[item.name] = copied
                 continue
             before = counts(b)
             compile_item(item, b)

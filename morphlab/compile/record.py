@@ -9,6 +9,12 @@ by nothing else: compiling from two threads is safe. A beam is copied only when 
 was compiled from is equal (the same numbers, a complex part included) and the builder stands
 where it stood when the beam was compiled (the same DOFs, rows and constraint rows before it);
 the copy is then the compile's own output, bit for bit (``tests/test_compile_record.py``).
+
+A beam whose inputs differ only in its section (:data:`SECTION`: a thickness, a modulus, a
+density) keeps its layout: its rows are copied with its element data computed again from the
+new section (``section``, :func:`morphlab.compile.bodies.section_rows`), which costs the
+elements' arithmetic and none of the frames' bookkeeping. A thickness variable of a
+many-frame skin, compiled once per variable by a sensitivity run, is that case.
 """
 
 from __future__ import annotations
@@ -22,6 +28,8 @@ from ..kernels.schema import DESIGN, KINDS, TIME, TOPOLOGY
 
 #: Attributes of a beam that are not inputs of its compile.
 _NOT_INPUTS = {"_model", "name"}
+#: Attributes of a beam that change its element data only (not its DOFs, rows or frames).
+SECTION = frozenset({"E", "rho", "thickness", "width", "area", "second_moment", "fibre"})
 
 
 class Entry(NamedTuple):
@@ -62,17 +70,34 @@ def same_inputs(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
 
 
+def changed_inputs(a: dict, b: dict) -> set | None:
+    """The names of the inputs that differ between two beams (None: not the same attributes)."""
+    if a.keys() != b.keys():
+        return None
+    return {k for k in a if not _equal(a[k], b[k])}
+
+
 def entry(beam, b, before: tuple) -> Entry:
     """The record of ``beam``, just compiled into ``b`` from the counts ``before``."""
     return Entry(inputs(beam), before, counts(b), b.bodies[beam.name], b.locate[beam.name])
 
 
-def replay(beam, b, like) -> bool:
+def replay(beam, b, like, section: Callable | None = None) -> Entry | None:
     """Copy ``beam``'s contribution from the compiled system ``like`` into the builder ``b``
-    when its record there applies (module docstring); returns whether it did."""
+    when its record there applies (module docstring); returns the beam's record in the new
+    system, or None where nothing was copied. ``section(beam, dtype, like, starts)``: the
+    rows of a beam whose section alone changed, ``{table: {field: values}}`` (``starts``: the
+    beam's first row in each table); without it such a beam is compiled again."""
     rec = like.record.get(beam.name)
-    if rec is None or counts(b) != rec.before or not same_inputs(rec.inputs, inputs(beam)):
-        return False
+    if rec is None or counts(b) != rec.before or (
+            np.dtype(like.dtype).kind == "c" and np.dtype(b.dtype).kind != "c"):
+        return None  # (a complex system's rows would lose their imaginary parts in a real one)
+    now = inputs(beam)
+    diff = changed_inputs(rec.inputs, now)
+    if diff is None or (diff and (section is None or not diff <= SECTION)):
+        return None
+    starts = dict(zip(b.tables, rec.before[1]))
+    patch = section(beam, b.dtype, like, starts) if diff else {}
     d0, d1 = rec.before[0], rec.after[0]
     b.dof_names += like.dof_names[d0:d1]
     b.q0 += list(like.q0[d0:d1])
@@ -84,6 +109,7 @@ def replay(beam, b, like) -> bool:
         kind = KINDS[name]
         values = {f.name: getattr(arrays, f.name)[n0:n1] for f in kind.fields
                   if f.role in (DESIGN, TOPOLOGY)}
+        values.update(patch.get(name, {}))
         base = like.time_base[name][n0:n1] if any(f.role == TIME for f in kind.fields) else None
         first = table.add(like.names[name][n0:n1], base=base, count=n1 - n0, **values)
         for i, prof in like.time_profiles.get(name, ()):
@@ -98,4 +124,4 @@ def replay(beam, b, like) -> bool:
     b.con_item += list(like.con_item[c0:c1])
     b.bodies[beam.name] = rec.info
     b.locate[beam.name] = rec.locate
-    return True
+    return rec._replace(inputs=now) if diff else rec
