@@ -10,7 +10,7 @@ state by ``dq_hat``, ``dv_hat``), ``dR/dp_i`` the explicit part (:mod:`morphlab.
 All variables' right-hand sides are solved at once, then the Newmark update advances the
 sensitivity histories.
 
-Which matrices (``docs/theory.md`` §6.3, the paper's eq. 39): with ``reuse``, the step's own
+Which matrices (``docs/theory.md`` §6.4, the paper's eq. 39): with ``reuse``, the step's own
 Newton matrix, as the primal's last iteration formed and factored it at the iterate before the
 last correction, and the ``Dq``, ``Dv`` of that same fill (the primal fills them alongside the
 Newton matrix): no matrix is formed for the sensitivities, and their relative error is of the
