@@ -40,6 +40,35 @@ def flexible_mechanism(gravity=(0.0, -9.81e3), n_elem=6, **frames):
     return m
 
 
+def inclined_slider_crank(p, length=50.0, th0=0.5, speed=30.0, rod_inertia=40.0,
+                          name="inclined slider-crank"):
+    """Rigid slider-crank under gravity whose guide through the crank's pivot is inclined by
+    ``p["alpha"]`` [rad]; slider mass ``p["m"]`` [t], crank radius ``p["r"]`` [mm], rod
+    ``length`` [mm], crank angle ``th0`` [rad] at the start; the crank driven from rest to
+    ``speed`` [rad/s]. Complex-safe in every design value (the slider's frame follows the
+    guide)."""
+    r, alpha = p["r"], p["alpha"]
+    e = np.array([np.cos(alpha), np.sin(alpha)])
+    pin = np.array([r * np.cos(th0), r * np.sin(th0)])
+    cross = pin[0] * e[1] - pin[1] * e[0]
+    x0 = (pin @ e + np.sqrt(length * length - cross * cross)) * e
+    m = ml.Model(gravity=(0.0, -9.81e3), name=name)
+    crank = m.add_rigid_body(mass=1e-4, inertia=5.0, position=tuple(pin / 2), name="crank")
+    rod = m.add_rigid_body(mass=2e-4, inertia=rod_inertia, position=tuple((pin + x0) / 2),
+                           name="rod")
+    slider = m.add_rigid_body(mass=p["m"], inertia=1.0, position=tuple(x0), angle=alpha,
+                              name="slider")
+    m.add_revolute(m.ground, crank, at=(0.0, 0.0), name="O")
+    m.add_revolute(crank, rod, at=tuple(pin), name="A")
+    m.add_revolute(rod, slider, at=tuple(x0), name="B")
+    m.add_prismatic(m.ground, slider, at=tuple(x0), axis=tuple(e), name="guide")
+    k = 2 * np.pi / 0.02
+    m.add_drive(crank, angle=ml.Custom(lambda t: speed * (t - np.sin(k * t) / k),
+                                       lambda t: speed * (1 - np.cos(k * t)),
+                                       lambda t: speed * k * np.sin(k * t)), name="motor")
+    return m
+
+
 def tip_loaded_cantilever(p, n_elem=4, length=100.0, frames="element"):
     """Aluminium strip (width 10 mm, thickness ``p["t"]`` [mm]) clamped at x = 0, a tip force
     ``-p["F"]`` [N] in y switched on smoothly over 4 ms, no gravity: the design model of the

@@ -4,6 +4,7 @@ gradient comes by the direct, the adjoint and the complex-step method alike."""
 
 import numpy as np
 import pytest
+from models import inclined_slider_crank
 
 import morphlab as ml
 
@@ -11,28 +12,10 @@ rs = ml.responses
 
 
 def slider_crank(p):
-    """Rigid slider-crank under gravity, its guide through the crank's pivot inclined by
-    ``p["alpha"]`` [rad]; slider mass ``p["m"]`` [t], crank radius ``p["r"]`` [mm]; the crank
-    driven from rest to 40 rad/s. Complex-safe in every design value."""
-    r, length, th0, alpha = p["r"], 60.0, 0.4, p["alpha"]
-    e = np.array([np.cos(alpha), np.sin(alpha)])
-    pin = np.array([r * np.cos(th0), r * np.sin(th0)])
-    cross = pin[0] * e[1] - pin[1] * e[0]
-    x0 = (pin @ e + np.sqrt(length * length - cross * cross)) * e
-    m = ml.Model(gravity=(0.0, -9.81e3), name="slider-crank")
-    crank = m.add_rigid_body(mass=1e-4, inertia=5.0, position=tuple(pin / 2), name="crank")
-    rod = m.add_rigid_body(mass=2e-4, inertia=60.0, position=tuple((pin + x0) / 2), name="rod")
-    slider = m.add_rigid_body(mass=p["m"], inertia=1.0, position=tuple(x0), angle=alpha,
-                              name="slider")
-    m.add_revolute(m.ground, crank, at=(0.0, 0.0), name="O")
-    m.add_revolute(crank, rod, at=tuple(pin), name="A")
-    m.add_revolute(rod, slider, at=tuple(x0), name="B")
-    m.add_prismatic(m.ground, slider, at=tuple(x0), axis=tuple(e), name="guide")
-    k = 2 * np.pi / 0.02
-    m.add_drive(crank, angle=ml.Custom(lambda t: 40.0 * (t - np.sin(k * t) / k),
-                                       lambda t: 40.0 * (1 - np.cos(k * t)),
-                                       lambda t: 40.0 * k * np.sin(k * t)), name="motor")
-    return m
+    """The shared slider-crank (``models.inclined_slider_crank``): rod 60 mm, crank at 0.4 rad,
+    driven from rest to 40 rad/s, rod inertia 60 t mm²."""
+    return inclined_slider_crank(p, length=60.0, th0=0.4, speed=40.0, rod_inertia=60.0,
+                                 name="slider-crank")
 
 
 P0 = {"alpha": 0.3, "m": 4e-4, "r": 25.0}

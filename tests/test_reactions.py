@@ -4,7 +4,7 @@ torque that keeps its rod turning) and against the energy the mechanism stores."
 
 import numpy as np
 import pytest
-from models import E_AL, RHO_AL, straight_nodes, tip_loaded_cantilever
+from models import E_AL, RHO_AL, inclined_slider_crank, straight_nodes, tip_loaded_cantilever
 from test_prismatic import bead_on_rotating_rod
 
 import morphlab as ml
@@ -162,29 +162,9 @@ def test_reaction_errors_name_the_joint():
 
 
 def _inclined_slider_crank(p):
-    """Rigid slider-crank under gravity whose guide through the crank's pivot is inclined by
-    ``p["alpha"]`` [rad]; slider mass ``p["m"]``, crank radius ``p["r"]`` [mm]; the crank is
-    driven from rest. Complex-safe in every design value (the slider's frame follows the
-    guide)."""
-    r, l, th0, alpha = p["r"], 50.0, 0.5, p["alpha"]
-    e = np.array([np.cos(alpha), np.sin(alpha)])
-    pin = np.array([r * np.cos(th0), r * np.sin(th0)])
-    cross = pin[0] * e[1] - pin[1] * e[0]
-    x0 = (pin @ e + np.sqrt(l * l - cross * cross)) * e
-    m = ml.Model(gravity=(0.0, -9.81e3), name="inclined slider-crank")
-    crank = m.add_rigid_body(mass=1e-4, inertia=5.0, position=tuple(pin / 2), name="crank")
-    rod = m.add_rigid_body(mass=2e-4, inertia=40.0, position=tuple((pin + x0) / 2), name="rod")
-    slider = m.add_rigid_body(mass=p["m"], inertia=1.0, position=tuple(x0), angle=alpha,
-                              name="slider")
-    m.add_revolute(m.ground, crank, at=(0.0, 0.0), name="O")
-    m.add_revolute(crank, rod, at=tuple(pin), name="A")
-    m.add_revolute(rod, slider, at=tuple(x0), name="B")
-    m.add_prismatic(m.ground, slider, at=tuple(x0), axis=tuple(e), name="guide")
-    k = 2 * np.pi / 0.02
-    m.add_drive(crank, angle=ml.Custom(lambda t: 30.0 * (t - np.sin(k * t) / k),
-                                       lambda t: 30.0 * (1 - np.cos(k * t)),
-                                       lambda t: 30.0 * k * np.sin(k * t)), name="motor")
-    return m
+    """The shared slider-crank (``models.inclined_slider_crank``): rod 50 mm, crank at 0.5 rad,
+    driven to 30 rad/s."""
+    return inclined_slider_crank(p)
 
 
 @pytest.mark.parametrize("method", ["direct", "adjoint"])
