@@ -108,18 +108,32 @@ def follower_coordinates(S, n_dof: int) -> dict:
 
 
 @inner
+def _scratch(A, q):
+    """Room for an element's six coordinates, of the scalar type of state and data."""
+    return np.zeros(6) + (q[0] * 0.0 + A.e[0, 0] * 0.0)
+
+
+@inner
+def _coordinates(A, q, e, d):
+    """Write the coordinates of pressure entry ``e``'s element into ``d`` (6,): its frame's
+    flexible coordinates of both nodes, 0 where a coordinate is removed."""
+    for j in range(6):
+        d[j] = 0.0
+        if A.dofs[e, j] >= 0:
+            d[j] = q[A.dofs[e, j]]
+
+
+@inner
 def pressure_residual(A, q, wf, T, t, k, items, R):
     """Subtract ``wf Q_ext`` of the pressure entries ``items`` from the equation rows of ``R``
     (module docstring)."""
     if A is None:  # the model has none of this kind
         return
+    d = _scratch(A, q)
     for e in items:
         ref = A.ref[e]
         zero = q[0] * 0.0 + A.e[e, 0] * 0.0
-        d = np.zeros(6) + zero  # the element's coordinates (0 where removed)
-        for j in range(6):
-            if A.dofs[e, j] >= 0:
-                d[j] = q[A.dofs[e, j]]
+        _coordinates(A, q, e, d)
         vx, vy, mom = zero, zero, zero
         for a in range(2):
             P = wf * T.P[t, k, e, a]
@@ -156,6 +170,7 @@ def pressure_matrix(A, q, cf, T, t, k, C, out):
     (H_a + H_a^T) d)``, ``dQ_d/dd = sum P_a G_a``."""
     if A is None:  # the model has none of this kind
         return
+    d = _scratch(A, q)
     for r in range(C.shape[0]):
         cq = C[r, 1]
         if cq == 0.0:
@@ -164,10 +179,7 @@ def pressure_matrix(A, q, cf, T, t, k, C, out):
         for e in range(A.ref.shape[0]):
             m = A.map[e]
             zero = q[0] * 0.0 + A.e[e, 0] * 0.0
-            d = np.zeros(6) + zero
-            for j in range(6):
-                if A.dofs[e, j] >= 0:
-                    d[j] = q[A.dofs[e, j]]
+            _coordinates(A, q, e, d)
             th = q[A.ref[e, 2]]
             c, s = np.cos(th), np.sin(th)
             for a in range(2):
