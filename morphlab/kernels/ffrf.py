@@ -216,6 +216,16 @@ def _clear(B, E, bodies, elems, flex_on, W):
 
 
 @inner
+def frame_state(B, b, q, v, a):
+    """Body ``b``'s reference rows and what its terms read of them: ``(iR0, iR1, ith, m,
+    theta', theta'', cos theta, sin theta)``, ``m`` its mass."""
+    ith = B.ref[b, 2]
+    th = q[ith]
+    return (B.ref[b, 0], B.ref[b, 1], ith, B.scal[b, 0], v[ith], a[ith], np.cos(th),
+            np.sin(th))
+
+
+@inner
 def _sums(B, Fx, b, flex_on, W):
     """Reductions over a body's coordinates (those with ``flex_on`` set): ``c_u`` (2),
     ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``, ``q_f^T M q_f``,
@@ -283,15 +293,7 @@ def residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W):
     gx = g[0]
     gy = g[1]
     for b in bodies:
-        iR0 = B.ref[b, 0]
-        iR1 = B.ref[b, 1]
-        ith = B.ref[b, 2]
-        m = B.scal[b, 0]
-        th = q[ith]
-        thd = v[ith]
-        tha = a[ith]
-        c = np.cos(th)
-        s = np.sin(th)
+        iR0, iR1, ith, m, thd, tha, c, s = frame_state(B, b, q, v, a)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
          sq_a) = _sums(B, Fx, b, flex_on, W)
         # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'

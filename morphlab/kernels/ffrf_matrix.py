@@ -5,7 +5,7 @@ and the element blocks, exact, for all bodies in one call (``docs/theory.md`` §
 import numpy as np
 
 from ._jit import inner
-from .ffrf import _clear, _gather, _products, _sums
+from .ffrf import _clear, _gather, _products, _sums, frame_state
 
 
 @inner
@@ -41,15 +41,7 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
     # blk[k]: the 3 x 3 reference block of D0 (k = 0), Dq (1) and Dv (2)
     blk = np.zeros((3, 3, 3), dtype=out.dtype)
     for b in range(B.ref.shape[0]):
-        iR0 = B.ref[b, 0]
-        iR1 = B.ref[b, 1]
-        ith = B.ref[b, 2]
-        m = B.scal[b, 0]
-        th = q[ith]
-        thd = v[ith]
-        tha = a[ith]
-        c = np.cos(th)
-        s = np.sin(th)
+        iR0, iR1, ith, m, thd, tha, c, s = frame_state(B, b, q, v, a)
         (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
          _) = _sums(B, Fx, b, all_flex, W)
         Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
