@@ -1,8 +1,9 @@
 """The direct-differentiation kernels against independent NumPy/SciPy evaluations.
 
 ``store`` must apply the primal's Newmark update (``morphlab.solve.scheme``) to
-sensitivity columns, and ``csc_residual`` must be ``b - A x`` for a CSC matrix; both are checked
-on random data for both schemes' coefficients (exact arithmetic up to round-off: 1e-14).
+sensitivity columns, and the CSC ``residual`` must be ``b - A x`` (or ``b - A^T x``) for a CSC
+matrix; both are checked on random data for both schemes' coefficients (exact arithmetic up to
+round-off: 1e-14).
 The pseudo-loads themselves are verified end to end against whole-run complex step in
 tests/test_sensitivity_direct.py.
 """
@@ -11,7 +12,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from morphlab.kernels.direct import Direct, csc_residual, store
+from morphlab.kernels.csc import residual
+from morphlab.kernels.direct import Direct, store
+from morphlab.kernels.pseudo import Column
 from morphlab.solve.scheme import (
     INITIAL,
     GeneralizedAlpha,
@@ -62,16 +65,22 @@ def test_initial_entry_sets_accelerations_and_multipliers_only():
     assert not DV.any()
 
 
-def test_csc_residual_is_b_minus_Ax():
+@pytest.mark.parametrize("transposed", [False, True])
+def test_csc_residual_is_b_minus_Ax(transposed):
+    """The one CSC loop reads and writes the right ends of each entry: against SciPy's product
+    with a nonsymmetric matrix, so that ``A`` and ``A^T`` differ (round-off of 40-term sums)."""
     rng = np.random.default_rng(5)
     A = sp.random(40, 40, density=0.15, random_state=6, format="csc") + sp.eye(40)
     A = A.tocsc()
+    assert abs(A - A.T).max() > 0.1
     x = rng.normal(size=(40, 6))
     b = rng.normal(size=(40, 6))
     r = np.empty_like(b)
-    rr, bb = csc_residual(A.data, A.indices.astype(np.int64), A.indptr.astype(np.int64), x, b, r)
-    np.testing.assert_allclose(r, b - A @ x, rtol=1e-13, atol=1e-13)
-    assert rr == pytest.approx(np.linalg.norm(b - A @ x), rel=1e-13)
+    expected = b - (A.T @ x if transposed else A @ x)
+    rr, bb = residual(A.data, A.indices.astype(np.int64), A.indptr.astype(np.int64), x, b, r,
+                      transposed)
+    np.testing.assert_allclose(r, expected, rtol=1e-13, atol=1e-13)
+    assert rr == pytest.approx(np.linalg.norm(expected), rel=1e-13)
     assert bb == pytest.approx(np.linalg.norm(b), rel=1e-13)
 
 
@@ -98,8 +107,8 @@ def _direct(DQ, DV, DA, DG, DLAM):
     ``store``)."""
     none = np.zeros(0)
     return Direct(DQ, DV, DA, DG, DLAM, None, True, 0, none.reshape(0, 0), none.reshape(0, 0),
-                  none.reshape(0, 0), none.reshape(0, 0), none, none, none,
-                  np.zeros(0, dtype=np.bool_), none.reshape(0, 0), none, None)
+                  none.reshape(0, 0), none.reshape(0, 0), Column.zeros(0, 0, np.float64),
+                  none.reshape(0, 0), none, None)
 
 
 def _scheme(coef, scale):

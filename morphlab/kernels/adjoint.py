@@ -28,8 +28,9 @@ from numba.extending import overload
 
 from ._jit import inner, kernel
 from .assemble import matrix
+from .csc import residual, subtract_product
 from .newton import Factors, solve_factored_transposed
-from .pseudo import explicit
+from .pseudo import step_column
 from .types import Level
 
 
@@ -61,8 +62,8 @@ class Sweep(NamedTuple):
     pseudo-load data ``ps`` with the residual
     rows each variable touches ``RO`` (n_x + 1,), ``RI``; ``reuse``, ``refine`` as for the
     direct method; the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``,
-    ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``col`` (n,), ``RN``, ``R0`` (n,), ``mask``
-    (n_flex,) bool, ``mats`` (6, nnz), ``refined`` (n_t,)."""
+    ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column`` (:class:`~morphlab.kernels.
+    pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
     Bq: np.ndarray
     Bv: np.ndarray
@@ -85,10 +86,7 @@ class Sweep(NamedTuple):
     r: np.ndarray
     work: np.ndarray
     gb: np.ndarray
-    col: np.ndarray
-    RN: np.ndarray
-    R0: np.ndarray
-    mask: np.ndarray
+    column: tuple
     mats: np.ndarray
     refined: np.ndarray
 
@@ -151,26 +149,12 @@ def kept_factor(K, F, j):
 
 
 @inner
-def _transposed_product(data, indices, indptr, n_cols, x, out):
-    """``out[:n_cols] -= A[:, :n_cols]^T x`` for the CSC matrix ``A`` and ``x`` (n, m)."""
-    m = x.shape[1]
-    for j in range(n_cols):
-        for p in range(indptr[j], indptr[j + 1]):
-            row = indices[p]
-            aij = data[p]
-            for i in range(m):
-                out[j, i] -= aij * x[row, i]
-
-
-@inner
 def _design_share(a, M, T, sc, new, old, k):
     """``grad_i -= (dR_k/dp_i)^T mu`` for every variable, over the rows it touches."""
-    ps, mu, col = a.ps, a.mu, a.col
+    mu, col = a.mu, a.column.R
     m = mu.shape[1]
     for i in range(a.grad.shape[0]):
-        explicit(ps, M, T, i, new, sc.w_new, k, a.mask, col, a.RN, a.R0)
-        if sc.has_old:
-            explicit(ps, M, T, i, old, sc.w_old, k - 1, a.mask, col, a.RN, a.R0)
+        step_column(a.ps, M, T, sc, i, new, old, k, a.column)
         for j in range(a.RO[i], a.RO[i + 1]):
             r = a.RI[j]
             for c in range(m):
@@ -222,7 +206,7 @@ def exact_matrices(a, M, T, sc, new, k):
 @kernel
 def refinement_residual(a, csc):
     """``a.r = z̄ - J*^T μ`` (the exact variant's refinement); returns ``(|r|, |z̄|)``."""
-    return _residual_t(a.mats[0], csc, a.mu, a.zb, a.r)
+    return residual(a.mats[0], csc.indices, csc.indptr, a.mu, a.zb, a.r, True)
 
 
 @kernel
@@ -237,8 +221,8 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     h, cqa, cqg, cva, cvg = sc.pc[0], sc.pc[1], sc.pc[2], sc.pc[3], sc.pc[4]
     gan, ggn = sc.upd[1], sc.upd[2]
     _design_share(a, M, T, sc, new, old, k)
-    _transposed_product(Dq, csc.indices, csc.indptr, n_dof, a.mu, a.Bq)  # adjoint of q_hat
-    _transposed_product(Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bv)  # and of v_hat
+    subtract_product(Dq, csc.indices, csc.indptr, n_dof, a.mu, a.Bq, True)  # adjoint of q_hat
+    subtract_product(Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bv, True)  # and of v_hat
     if k == 0:
         return True
     for i in range(n_dof):
@@ -257,12 +241,12 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     if sc.has_old:  # the paper's weighting: the old level's share
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
         matrix(M, old, sc.w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
-        _transposed_product(a.mats[4], csc.indices, csc.indptr, n_dof, a.mu, a.Bq)
-        _transposed_product(a.mats[5], csc.indices, csc.indptr, n_dof, a.mu, a.Bv)
+        subtract_product(a.mats[4], csc.indices, csc.indptr, n_dof, a.mu, a.Bq, True)
+        subtract_product(a.mats[5], csc.indices, csc.indptr, n_dof, a.mu, a.Bv, True)
         for i in range(n):
             for c in range(m):
                 a.r[i, c] = 0.0
-        _transposed_product(a.mats[3], csc.indices, csc.indptr, n, a.mu, a.r)
+        subtract_product(a.mats[3], csc.indices, csc.indptr, n, a.mu, a.r, True)
         for i in range(n_dof):
             for c in range(m):
                 a.Ba[i, c] += a.r[i, c]
@@ -302,20 +286,3 @@ def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo):
         if finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
             return True
     return False
-
-
-@inner
-def _residual_t(data, csc, x, b, r):
-    """``r = b - A^T x``; returns ``(|r|_F, |b|_F)``."""
-    n = csc.indptr.shape[0] - 1
-    for j in range(n):
-        for i in range(x.shape[1]):
-            r[j, i] = b[j, i]
-    _transposed_product(data, csc.indices, csc.indptr, n, x, r)
-    rr = 0.0
-    bb = 0.0
-    for j in range(n):
-        for i in range(x.shape[1]):
-            rr += r[j, i] * r[j, i]
-            bb += b[j, i] * b[j, i]
-    return np.sqrt(rr), np.sqrt(bb)

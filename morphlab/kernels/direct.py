@@ -29,19 +29,20 @@ import numpy as np
 from ._jit import inner, kernel
 from .adjoint import kept_factor, kept_state
 from .assemble import matrix
+from .csc import residual, subtract_product
 from .newmark import predict, update
 from .newton import solve_factored
-from .pseudo import explicit
+from .pseudo import step_column
 
 
 class Direct(NamedTuple):
     """The work of a run's direct sensitivities: histories ``DQ, DV, DA, DG, DL``
     (module docstring), the pseudo-load data ``ps`` (:class:`~morphlab.kernels.pseudo.
     Pseudo`), ``reuse`` and ``refine`` (module docstring), buffers ``rhs``, ``x``, ``r``,
-    ``work`` (n, n_x), ``col`` (n,), ``RN``, ``R0`` (n,) (the perturbed path's dtype, float),
-    ``mask`` (n_flex,) bool, ``mats`` (6, nnz) (split matrices at the converged and the old
-    state), ``refined`` (n_t,): the relative residual of each refined solve, ``csc`` the
-    step matrix's pattern (:class:`~morphlab.kernels.newton.Csc`)."""
+    ``work`` (n, n_x), ``column`` (:class:`~morphlab.kernels.pseudo.Column`), ``mats``
+    (6, nnz) (split matrices at the converged and the old state), ``refined`` (n_t,): the
+    relative residual of each refined solve, ``csc`` the step matrix's pattern
+    (:class:`~morphlab.kernels.newton.Csc`)."""
 
     DQ: np.ndarray
     DV: np.ndarray
@@ -55,43 +56,10 @@ class Direct(NamedTuple):
     x: np.ndarray
     r: np.ndarray
     work: np.ndarray
-    col: np.ndarray
-    RN: np.ndarray
-    R0: np.ndarray
-    mask: np.ndarray
+    column: tuple
     mats: np.ndarray
     refined: np.ndarray
     csc: tuple
-
-
-@inner
-def _subtract_product(data, indices, indptr, n_cols, X, out):
-    """``out -= A[:, :n_cols] X`` for the CSC matrix ``A = (data, indices, indptr)``."""
-    n_x = X.shape[1]
-    for j in range(n_cols):
-        for p in range(indptr[j], indptr[j + 1]):
-            row = indices[p]
-            aij = data[p]
-            for i in range(n_x):
-                out[row, i] -= aij * X[j, i]
-
-
-@kernel
-def csc_residual(data, indices, indptr, x, b, r):
-    """``r = b - A x`` for the CSC matrix ``A`` and ``x`` (n, n_x); returns ``(|r|_F,
-    |b|_F)``."""
-    n = indptr.shape[0] - 1
-    for j in range(n):
-        for i in range(x.shape[1]):
-            r[j, i] = b[j, i]
-    _subtract_product(data, indices, indptr, n, x, r)
-    rr = 0.0
-    bb = 0.0
-    for j in range(n):
-        for i in range(x.shape[1]):
-            rr += r[j, i] * r[j, i]
-            bb += b[j, i] * b[j, i]
-    return np.sqrt(rr), np.sqrt(bb)
 
 
 @inner
@@ -105,14 +73,13 @@ def rhs(d, M, T, sc, D, new, old, k):
     n_x = d.rhs.shape[1]
     lev = d.DQ.shape[1], d.DV.shape[1], d.DA.shape[1], d.DG.shape[1], d.DL.shape[1]
     m = k - 1 if k > 0 else 0  # the initial solve's "old" level: the initial state itself
+    col = d.column.R
     for i in range(n_x):
-        for r in range(d.col.shape[0]):
-            d.col[r] = 0.0
-        explicit(d.ps, M, T, i, new, sc.w_new, k, d.mask, d.col, d.RN, d.R0)
-        if sc.has_old:
-            explicit(d.ps, M, T, i, old, sc.w_old, m, d.mask, d.col, d.RN, d.R0)
-        for r in range(d.col.shape[0]):
-            d.rhs[r, i] = -d.col[r]
+        for r in range(col.shape[0]):
+            col[r] = 0.0
+        step_column(d.ps, M, T, sc, i, new, old, k, d.column)
+        for r in range(col.shape[0]):
+            d.rhs[r, i] = -col[r]
     # the state part: R_q dq_hat + R_v dv_hat over the predictors of every column
     dqh = np.empty((n_dof, n_x))
     dvh = np.empty((n_dof, n_x))
@@ -124,8 +91,8 @@ def rhs(d, M, T, sc, D, new, old, k):
         for r in range(n_dof):
             dqh[r, i] = qh[r]
             dvh[r, i] = vh[r]
-    _subtract_product(D[1], d.csc.indices, d.csc.indptr, n_dof, dqh, d.rhs)
-    _subtract_product(D[2], d.csc.indices, d.csc.indptr, n_dof, dvh, d.rhs)
+    subtract_product(D[1], d.csc.indices, d.csc.indptr, n_dof, dqh, d.rhs, False)
+    subtract_product(D[2], d.csc.indices, d.csc.indptr, n_dof, dvh, d.rhs, False)
     if sc.has_old:
         x0 = np.empty((n_dof + n_con, n_x))
         for i in range(n_x):
@@ -135,9 +102,10 @@ def rhs(d, M, T, sc, D, new, old, k):
                 dvh[r, i] = d.DV[i, m % lev[1], r]
             for r in range(n_con):
                 x0[n_dof + r, i] = d.DL[i, m % lev[4], r] / sc.w_new.scale
-        _subtract_product(D[4], d.csc.indices, d.csc.indptr, n_dof, dqh, d.rhs)
-        _subtract_product(D[5], d.csc.indices, d.csc.indptr, n_dof, dvh, d.rhs)
-        _subtract_product(D[3], d.csc.indices, d.csc.indptr, n_dof + n_con, x0, d.rhs)
+        subtract_product(D[4], d.csc.indices, d.csc.indptr, n_dof, dqh, d.rhs, False)
+        subtract_product(D[5], d.csc.indices, d.csc.indptr, n_dof, dvh, d.rhs, False)
+        subtract_product(D[3], d.csc.indices, d.csc.indptr, n_dof + n_con, x0, d.rhs,
+                         False)
 
 
 @kernel
@@ -203,7 +171,7 @@ def prepare(d, M, T, sc, Dq, Dv, new, old, k):
 @kernel
 def refinement_residual(d):
     """``d.r = rhs - J* x`` (the exact variant's refinement); returns ``(|r|, |rhs|)``."""
-    return csc_residual(d.mats[0], d.csc.indices, d.csc.indptr, d.x, d.rhs, d.r)
+    return residual(d.mats[0], d.csc.indices, d.csc.indptr, d.x, d.rhs, d.r, False)
 
 
 @kernel(nogil=True)

@@ -71,18 +71,36 @@ class Pseudo(NamedTuple):
     WN: tuple
 
 
+class Column(NamedTuple):
+    """One variable's explicit part and its scratch: ``R`` (n,) float64, the column
+    :func:`explicit` adds to; ``RN``, ``R0`` (n,): scratch residuals of the perturbed path
+    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls."""
+
+    R: np.ndarray
+    RN: np.ndarray
+    R0: np.ndarray
+    mask: np.ndarray
+
+    @classmethod
+    def zeros(cls, n: int, n_flex: int, dtype) -> "Column":
+        """A zero column for ``n`` residual rows, ``n_flex`` flexible coordinates and the
+        perturbed path's ``dtype``."""
+        return cls(np.zeros(n), np.zeros(n, dtype=dtype), np.zeros(n),
+                   np.zeros(n_flex, dtype=np.bool_))
+
+
 @inner
 def _any(off):
     return off[off.shape[0] - 1] > off[0]
 
 
 @inner
-def explicit(ps, M, T, i, x, w, k, mask, R, RN, R0):
+def explicit(ps, M, T, i, x, w, k, c):
     """Add ``dR/dp_i`` of one level's residual share (state ``x``, weights ``w``, time index
-    ``k``) to ``R`` (n,) float64; ``mask`` (n_flex,) bool, all False on entry and on return;
-    ``RN``, ``R0``: scratch residuals (``MN``'s dtype, float64). ``M``, ``T``: the nominal
-    system and time values (the forward difference subtracts their residual)."""
+    ``k``) to the column ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system and time
+    values (the forward difference subtracts their residual)."""
     n_dof = x.q.shape[0]
+    R, RN, R0, mask = c.R, c.RN, c.R0, c.mask
     a, b = ps.PO[i], ps.PO[i + 1]
     pos = ps.PP[a:b]
     for j in range(ps.FOFF[i], ps.FOFF[i + 1]):
@@ -117,7 +135,17 @@ def explicit(ps, M, T, i, x, w, k, mask, R, RN, R0):
         mask[ps.FIDX[j]] = False
 
 
+@inner
+def step_column(ps, M, T, sc, i, new, old, k, c):
+    """Add ``dR/dp_i`` of step ``k`` to ``c.R``: the share of the converged state ``new``
+    and, for a scheme with an old level (``sc``: :class:`~morphlab.kernels.steps.Step`), that
+    of ``old`` at time index ``k - 1`` (the initial solve has none)."""
+    explicit(ps, M, T, i, new, sc.w_new, k, c)
+    if sc.has_old:
+        explicit(ps, M, T, i, old, sc.w_old, k - 1 if k > 0 else 0, c)
+
+
 @kernel
-def explicit_column(ps, M, T, i, x, w, k, mask, R, RN, R0):
+def explicit_column(ps, M, T, i, x, w, k, c):
     """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
-    explicit(ps, M, T, i, x, w, k, mask, R, RN, R0)
+    explicit(ps, M, T, i, x, w, k, c)

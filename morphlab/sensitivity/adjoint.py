@@ -25,6 +25,7 @@ from ..compile import System
 from ..kernels import adjoint as kadj
 from ..kernels.histories import Histories
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
+from ..kernels.pseudo import Column
 from ..kernels.steps import run_steps
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp, system_data
@@ -218,8 +219,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
                    ps, RO, RI, reuse, refine, np.zeros((n_x, m)), np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
-                   np.zeros(n), np.zeros(n, dtype=ps.DN.dtype), np.zeros(n),
-                   np.zeros(sys0.count("flex"), dtype=np.bool_), np.zeros((6, sys0.nnz)),
+                   Column.zeros(n, sys0.count("flex"), ps.DN.dtype), np.zeros((6, sys0.nnz)),
                    np.full(settings.n_steps + 1, np.nan))
     stp = hook.stepper
     sc = stp.scheme_of()
@@ -313,13 +313,12 @@ def _touched(sys0: System, ps) -> tuple:
                              for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
-    mask = np.zeros(sys0.count("flex"), dtype=np.bool_)
-    col, RN, R0 = np.zeros(n), np.zeros(n, dtype=ps.DN.dtype), np.zeros(n)
+    c = Column.zeros(n, sys0.count("flex"), ps.DN.dtype)
     rows = []
     for i in range(ps.PO.size - 1):
-        col[:] = 0.0
-        explicit_column(ps, sys0.arrays, T, i, x, w, 0, mask, col, RN, R0)
-        rows.append(np.flatnonzero(col != 0.0))
+        c.R[:] = 0.0
+        explicit_column(ps, sys0.arrays, T, i, x, w, 0, c)
+        rows.append(np.flatnonzero(c.R != 0.0))
     RO = np.zeros(len(rows) + 1, dtype=np.int64)
     RO[1:] = np.cumsum([r.size for r in rows])
     RI = np.concatenate(rows + [np.zeros(0, np.int64)]).astype(np.int64)

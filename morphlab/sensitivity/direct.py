@@ -30,7 +30,7 @@ from ..kernels.adjoint import Keep
 from ..kernels.assemble import matrix
 from ..kernels.direct import Direct, chunk, prepare, refinement_residual, store
 from ..kernels.newton import Csc
-from ..kernels.pseudo import Pseudo
+from ..kernels.pseudo import Column, Pseudo
 from ..solve.record import fits as _fits
 from ..solve.record import keep_record
 from ..solve.scheme import kernel_scheme
@@ -69,8 +69,7 @@ class DirectHook(StepHook):
         self.d = Direct(self.full["q"], self.full["v"], self.full["a"],
                         np.zeros((n_x, 2, n_dof)), self.full["lam"], ps, reuse, refine,
                         np.zeros((n, n_x)), np.zeros((n, n_x)), np.zeros((n, n_x)),
-                        np.zeros((n, n_x)), np.zeros(n), np.zeros(n, dtype=ps.DN.dtype),
-                        np.zeros(n), np.zeros(system.count("flex"), dtype=np.bool_),
+                        np.zeros((n, n_x)), Column.zeros(n, system.count("flex"), ps.DN.dtype),
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
                         Csc(system.indices, system.indptr))
         self.record = None
