@@ -63,8 +63,8 @@ class AdjointHook(StepHook):
         self.rows = 3 if reuse else 1
         self.python: dict[int, _PythonStep] = {}
         # the Keeps of the compiled steps, each from its first step to the end of the run; a
-        # later one (the sparse factors changed size with a new row order) takes over from
-        # its first step
+        # later one (a new row order of the sparse factors, whose values the earlier one's
+        # patterns do not read) takes over from its first step
         self.records: list = []
         self.patterns: list = []  # the factor arrays of each record's row order
         self.segment = None  # steps per segment in checkpoint mode
@@ -103,7 +103,8 @@ class AdjointHook(StepHook):
         F = self.stepper.newton.factorization.loop_arrays()
         if self.segment is not None:  # checkpoint mode: the sweep recomputes the steps
             return None
-        if not self.records or not _fits(self.records[-1], F):
+        if (not self.records or not _fits(self.records[-1], F)
+                or F.order is not self.patterns[-1].order):  # new sizes or a new row order
             per = self._per_step(F)
             used = sum(self._per_step_of(R) * (R.Q.shape[0] - 1) for R in self.records)
             if used + per * (self.n_steps - k0 + 1) > self.memory:
@@ -147,28 +148,32 @@ class _Replay:
                            np.zeros((settings.n_steps + 1, settings.max_iter, 2)),
                            np.zeros((settings.n_steps + 1, 2)), False)
 
-    def segment(self, c: int, k1: int):
-        """The record of the compiled steps ``c .. k1 - 1`` from the checkpoint at ``c``."""
+    def segment(self, c: int, k1: int) -> list:
+        """The records of the compiled steps ``c .. k1 - 1`` recomputed from the checkpoint at
+        ``c``: a list of ``(K, F)`` in time order, a new one where a refused pivot gives the
+        factorization a new row order (``F``: the factor arrays of the record's row order)."""
         st = self.hook.checkpoints[c]
         H, stp, nw = self.H, self.stp, self.nw
         j = (c - 1) % 2
         H.Q[j], H.V[j], H.A[j], H.L[j], H.G[j] = st.q, st.v, st.a, st.lam, st.g
-        F = nw.factorization.loop_arrays()
-        K = keep_record(self.hook.system, F, k1 - c, c, self.hook.rows == 3)
-        K.Q[0], K.V[0], K.A[0], K.L[0] = st.q, st.v, st.a, st.lam
+        pieces = []
         k = c
         while k < k1:
             F = nw.factorization.loop_arrays()
-            k, status, bad, it, z = run_steps(stp.M, stp.T, stp.P, stp.scheme_of(), nw.csc, F,
-                                              nw.options(), nw.work(), H, k, k1, K)
+            K = keep_record(self.hook.system, F, k1 - k, k, self.hook.rows == 3)
+            j = (k - 1) % 2
+            K.Q[0], K.V[0], K.A[0], K.L[0] = H.Q[j], H.V[j], H.A[j], H.L[j]
+            k_next, status, bad, it, z = run_steps(stp.M, stp.T, stp.P, stp.scheme_of(),
+                                                   nw.csc, F, nw.options(), nw.work(), H, k,
+                                                   k1, K)
+            if k_next > k:
+                pieces.append((K, F))
             if status == PIVOT_REFUSED:  # a new row order for this matrix, then on
                 nw.factorization._new_row_order(nw.work().data[0])
-                if not _fits(K, nw.factorization.loop_arrays()):
-                    raise RuntimeError("the factor sizes changed while a segment was "
-                                       "recomputed")  # pragma: no cover
             elif status != CONVERGED:  # pragma: no cover - the primal converged here
-                raise RuntimeError(f"a recomputed step failed (status {status} at {k})")
-        return K
+                raise RuntimeError(f"a recomputed step failed (status {status} at {k_next})")
+            k = k_next
+        return pieces
 
 
 def _terms(vjps: list[ResponseVJP], ns: np.ndarray, s: System) -> tuple:
@@ -241,13 +246,18 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         first_checkpoint = min(starts) if starts else N + 1
         if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
+            a = _with_terms(a, vjps, sys0, lo, k)
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo)
         else:
-            F = stp.newton.factorization.loop_arrays()
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
-            K = replay.segment(c, k + 1)
-        a = _with_terms(a, vjps, sys0, lo, k)
-        kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo)
+            for K, F in reversed(replay.segment(c, k + 1)):
+                if k < lo:
+                    break
+                k0 = max(lo, int(K.k0[0]))
+                a = _with_terms(a, vjps, sys0, k0, k)
+                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0)
+                k = k0 - 1
         k = lo - 1
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
     total = _time.perf_counter() - t0
