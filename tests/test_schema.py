@@ -2,6 +2,9 @@
 keeps of them agrees with the declarations, and a model with every kind of item compiles into
 tables of the declared shapes whose design data the flat design vector lays out exactly."""
 
+import pickle
+import sys
+
 import numpy as np
 import pytest
 
@@ -49,6 +52,19 @@ def test_the_containers_are_generated_from_the_kinds():
             assert kind.coordinates is not None, name  # the pattern knows its entries
         if "con" in kind.fields_by_name:
             assert kind.reactions is not None, name  # a constraint kind's reactions
+
+
+def test_each_kinds_named_tuples_are_found_by_module_and_name():
+    """Numba's disk cache and pickle find a type by its module and name: ``register`` binds
+    every kind's tuples in its kernel module (a tuple found nowhere fails the cache's load)."""
+    for name, kind in KINDS.items():
+        for tuple_type in (kind.arrays, kind.times):
+            if tuple_type is not None:
+                module = sys.modules[tuple_type.__module__]
+                assert module.__name__.startswith("morphlab.kernels."), name
+                assert getattr(module, tuple_type.__name__) is tuple_type, name
+        table = kind.arrays(*range(len(kind.arrays._fields)))
+        assert pickle.loads(pickle.dumps(table)) == table
 
 
 def test_every_item_class_has_a_compile_function():

@@ -63,12 +63,12 @@ def residual(M, x, w, T, t, k, P, n_dof, R, W):
     joints.residual(M.rows, x, w, T.rows, t, k, i[o[ROWS]:o[ROWS + 1]], n_dof, R)
     slides.residual(M.slides, x, w, T.slides, t, k, i[o[SLIDES]:o[SLIDES + 1]], n_dof, R)
     loads.torque_residual(M.torques, w.wf, T.torques, t, k, i[o[TORQUES]:o[TORQUES + 1]], R)
-    loads.load_residual(M.loads, x.q, w.wf, T.loads, t, k, i[o[LOADS]:o[LOADS + 1]], R)
+    loads.point_force_residual(M.loads, x.q, w.wf, T.loads, t, k, i[o[LOADS]:o[LOADS + 1]], R)
     loads.line_residual(M.lines, x.q, w.wf, T.lines, t, k, i[o[LINES]:o[LINES + 1]], R)
     forces.residual(M.springs, x, w.wf, i[o[SPRINGS]:o[SPRINGS + 1]], R)
     pressure.pressure_residual(M.pressures, x.q, w.wf, T.pressures, t, k,
                                i[o[PRESSURES]:o[PRESSURES + 1]], R)
-    pressure.follower_residual(M.followers, x.q, w.wf, T.followers, t, k,
+    loads.point_force_residual(M.followers, x.q, w.wf, T.followers, t, k,
                                i[o[FOLLOWERS]:o[FOLLOWERS + 1]], R)
 
 
@@ -84,11 +84,11 @@ def matrix(M, x, w, T, t, k, C, out, W):
     ffrf_matrix.matrix(M.bodies, M.flex, M.elements, M.gravity, x, w, C, out, W)
     joints.matrix(M.rows, x, w, C, out)
     slides.matrix(M.slides, x, w, C, out)
-    loads.load_matrix(M.loads, x.q, w.wf, T.loads, t, k, C, out)
+    loads.point_force_matrix(M.loads, x.q, w.wf, T.loads, t, k, C, out)
     loads.line_matrix(M.lines, x.q, w.wf, T.lines, t, k, C, out)
     forces.matrix(M.springs, x, w.wf, C, out)
     pressure.pressure_matrix(M.pressures, x.q, w.wf, T.pressures, t, k, C, out)
-    pressure.follower_matrix(M.followers, x.q, w.wf, T.followers, t, k, C, out)
+    loads.point_force_matrix(M.followers, x.q, w.wf, T.followers, t, k, C, out)
 
 
 @inner

@@ -51,7 +51,6 @@ BODIES = register(Kind("bodies", [
     topology("flex", (2,), "the body's flexible coordinates: first, stop"),
     pattern("block", (3, 3), "positions of the 3 x 3 reference block"),
 ], "one floating frame: a rigid body, or one frame of a beam", module=__name__))
-Bodies = BODIES.arrays
 
 FLEX = register(Kind("flex", [
     design("IS", (2,), "I_S of the coordinate", linear=True),
@@ -61,7 +60,6 @@ FLEX = register(Kind("flex", [
     pattern("border", (2, 3), "positions of (reference row i, this column), then "
                               "(this row, reference column i)"),
 ], "a flexible (deformation) coordinate of a body", module=__name__))
-Flex = FLEX.arrays
 
 ELEMENTS = register(Kind("elements", [
     design("M", (6, 6), "element M_ff in the body frame", linear=True),
@@ -74,7 +72,6 @@ ELEMENTS = register(Kind("elements", [
     topology("dofs", (6,), "global DOF of each element DOF (-1: removed; results only)"),
     pattern("map", (6, 6), "positions of the element entries"),
 ], "an Euler-Bernoulli beam element of a body", module=__name__))
-Elements = ELEMENTS.arrays
 
 
 @BODIES.pattern_of
@@ -216,16 +213,6 @@ def _clear(B, E, bodies, elems, flex_on, W):
 
 
 @inner
-def frame_state(B, b, q, v, a):
-    """Body ``b``'s reference rows and what its terms read of them: ``(iR0, iR1, ith, m,
-    theta', theta'', cos theta, sin theta)``, ``m`` its mass."""
-    ith = B.ref[b, 2]
-    th = q[ith]
-    return (B.ref[b, 0], B.ref[b, 1], ith, B.scal[b, 0], v[ith], a[ith], np.cos(th),
-            np.sin(th))
-
-
-@inner
 def _sums(B, Fx, b, flex_on, W):
     """Reductions over a body's coordinates (those with ``flex_on`` set): ``c_u`` (2),
     ``I_S a_f`` (2), ``I_S q_f'`` (2), ``I_0S.q_f``, ``I_0S.q_f'``, ``q_f^T M q_f``,
@@ -263,6 +250,69 @@ def _sums(B, Fx, b, flex_on, W):
     return cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a
 
 
+class Frame(NamedTuple):
+    """What a body's terms of the residual and the step matrix read of its frame: the
+    reference rows ``iR0, iR1, ith``, the mass ``m``, ``thd, tha`` (theta', theta''), ``c, s``
+    (cos and sin theta); the reductions of :func:`_sums` (``cux, cuy`` = c_u, ``isa*`` = I_S
+    a_f, ``isv*`` = I_S q_f', ``i0s_q, i0s_v`` = I_0S.q_f, I_0S.q_f', ``qMq, qMv`` = q_f^T M
+    q_f, q_f^T M q_f', ``i0is_a``, ``sq_a``); their rotations ``Ac*`` = A c_u, ``AIc*`` = AĨ
+    c_u, ``Aisa_*`` = A I_S a_f, ``AIisa_*``, ``Aisv_*`` = A I_S q_f', ``AIisv_*``; ``aRx,
+    aRy`` the reference acceleration and ``mthth`` = I_thth + 2 I_0S.q_f + q_f^T M q_f."""
+
+    iR0: int
+    iR1: int
+    ith: int
+    m: float
+    thd: float
+    tha: float
+    c: float
+    s: float
+    cux: float
+    cuy: float
+    isax: float
+    isay: float
+    isvx: float
+    isvy: float
+    i0s_q: float
+    i0s_v: float
+    qMq: float
+    qMv: float
+    i0is_a: float
+    sq_a: float
+    Acx: float
+    Acy: float
+    AIcx: float
+    AIcy: float
+    Aisa_x: float
+    Aisa_y: float
+    AIisa_x: float
+    AIisa_y: float
+    Aisv_x: float
+    Aisv_y: float
+    AIisv_x: float
+    AIisv_y: float
+    aRx: float
+    aRy: float
+    mthth: float
+
+
+@inner
+def frame(B, Fx, b, flex_on, W, q, v, a):
+    """Body ``b``'s :class:`Frame` at the state ``q, v, a`` (the body's coordinates with
+    ``flex_on`` set in the reductions; ``W`` gathered)."""
+    iR0, iR1, ith = B.ref[b, 0], B.ref[b, 1], B.ref[b, 2]
+    c, s = np.cos(q[ith]), np.sin(q[ith])
+    (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
+     sq_a) = _sums(B, Fx, b, flex_on, W)
+    Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
+    Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
+    Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
+    return Frame(iR0, iR1, ith, B.scal[b, 0], v[ith], a[ith], c, s, cux, cuy, isax, isay, isvx,
+                 isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a, Acx, Acy, -Acy, Acx, Aisa_x,
+                 Aisa_y, -Aisa_y, Aisa_x, Aisv_x, Aisv_y, -Aisv_y, Aisv_x, a[iR0], a[iR1],
+                 B.scal[b, 3] + 2.0 * i0s_q + qMq)
+
+
 @inner
 def residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W):
     """Add ``w.wm M(q) a + w.wf (K q_f + beta_d K q_f' - Q_v - Q_g)`` of the bodies
@@ -293,42 +343,31 @@ def residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W):
     gx = g[0]
     gy = g[1]
     for b in bodies:
-        iR0, iR1, ith, m, thd, tha, c, s = frame_state(B, b, q, v, a)
-        (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
-         sq_a) = _sums(B, Fx, b, flex_on, W)
-        # A c_u, AĨ c_u, A I_S a_f, AĨ I_S q_f'
-        Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
-        AIcx, AIcy = -Acy, Acx
-        Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
-        Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
-        AIisv_x, AIisv_y = -Aisv_y, Aisv_x
-        aRx = a[iR0]
-        aRy = a[iR1]
-        mthth = B.scal[b, 3] + 2.0 * i0s_q + qMq
+        f = frame(B, Fx, b, flex_on, W, q, v, a)
         # inertia
-        R[iR0] += wm * (m * aRx + AIcx * tha + Aisa_x)
-        R[iR1] += wm * (m * aRy + AIcy * tha + Aisa_y)
-        R[ith] += wm * (AIcx * aRx + AIcy * aRy + mthth * tha + i0is_a + sq_a)
+        R[f.iR0] += wm * (f.m * f.aRx + f.AIcx * f.tha + f.Aisa_x)
+        R[f.iR1] += wm * (f.m * f.aRy + f.AIcy * f.tha + f.Aisa_y)
+        R[f.ith] += wm * (f.AIcx * f.aRx + f.AIcy * f.aRy + f.mthth * f.tha + f.i0is_a + f.sq_a)
         # forces: F = -Q_v - Q_g (+ elastic, flex rows below)
-        qvx = thd * thd * Acx - 2.0 * thd * AIisv_x
-        qvy = thd * thd * Acy - 2.0 * thd * AIisv_y
-        qvth = -2.0 * thd * (i0s_v + qMv)
-        R[iR0] -= wf * (qvx + m * gx)
-        R[iR1] -= wf * (qvy + m * gy)
-        R[ith] -= wf * (qvth + AIcx * gx + AIcy * gy)
+        qvx = f.thd * f.thd * f.Acx - 2.0 * f.thd * f.AIisv_x
+        qvy = f.thd * f.thd * f.Acy - 2.0 * f.thd * f.AIisv_y
+        qvth = -2.0 * f.thd * (f.i0s_v + f.qMv)
+        R[f.iR0] -= wf * (qvx + f.m * gx)
+        R[f.iR1] -= wf * (qvy + f.m * gy)
+        R[f.ith] -= wf * (qvth + f.AIcx * gx + f.AIcy * gy)
         # A^T a_R and A^T g
-        ATax = c * aRx + s * aRy
-        ATay = -s * aRx + c * aRy
-        ATgx = c * gx + s * gy
-        ATgy = -s * gx + c * gy
+        ATax = f.c * f.aRx + f.s * f.aRy
+        ATay = -f.s * f.aRx + f.c * f.aRy
+        ATgx = f.c * gx + f.s * gy
+        ATgy = -f.s * gx + f.c * gy
         for k in range(B.flex[b, 0], B.flex[b, 1]):
             if not flex_on[k]:
                 continue
             i = Fx.dof[k]
             isx = Fx.IS[k, 0]
             isy = Fx.IS[k, 1]
-            R[i] += wm * (isx * ATax + isy * ATay + (Fx.I0IS[k] + Sq[k]) * tha + Ma[k])
-            qvf = thd * thd * (Fx.I0S[k] + Mq[k]) - 2.0 * thd * Sv[k]
+            R[i] += wm * (isx * ATax + isy * ATay + (Fx.I0IS[k] + Sq[k]) * f.tha + Ma[k])
+            qvf = f.thd * f.thd * (Fx.I0S[k] + Mq[k]) - 2.0 * f.thd * Sv[k]
             qgf = isx * ATgx + isy * ATgy
             R[i] += wf * (Kd[k] - qvf - qgf)
     _clear(B, E, bodies, elems, flex_on, W)

@@ -5,7 +5,7 @@ and the element blocks, exact, for all bodies in one call (``docs/theory.md`` §
 import numpy as np
 
 from ._jit import inner
-from .ffrf import _clear, _gather, _products, _sums, frame_state
+from .ffrf import _clear, _gather, _products, frame
 
 
 @inner
@@ -41,42 +41,31 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
     # blk[k]: the 3 x 3 reference block of D0 (k = 0), Dq (1) and Dv (2)
     blk = np.zeros((3, 3, 3), dtype=out.dtype)
     for b in range(B.ref.shape[0]):
-        iR0, iR1, ith, m, thd, tha, c, s = frame_state(B, b, q, v, a)
-        (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, _,
-         _) = _sums(B, Fx, b, all_flex, W)
-        Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
-        AIcx, AIcy = -Acy, Acx
-        Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
-        AIisa_x, AIisa_y = -Aisa_y, Aisa_x
-        Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
-        AIisv_x, AIisv_y = -Aisv_y, Aisv_x
-        aRx = a[iR0]
-        aRy = a[iR1]
-        mthth = B.scal[b, 3] + 2.0 * i0s_q + qMq
+        f = frame(B, Fx, b, all_flex, W, q, v, a)
         # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
         blk[:] = 0.0
         # mass
-        blk[0, 0, 0] = cm * m
-        blk[0, 1, 1] = cm * m
-        blk[0, 0, 2] = cm * AIcx
-        blk[0, 1, 2] = cm * AIcy
-        blk[0, 2, 0] = cm * AIcx
-        blk[0, 2, 1] = cm * AIcy
-        blk[0, 2, 2] = cm * mthth
+        blk[0, 0, 0] = cm * f.m
+        blk[0, 1, 1] = cm * f.m
+        blk[0, 0, 2] = cm * f.AIcx
+        blk[0, 1, 2] = cm * f.AIcy
+        blk[0, 2, 0] = cm * f.AIcx
+        blk[0, 2, 1] = cm * f.AIcy
+        blk[0, 2, 2] = cm * f.mthth
         # d(M a)/d th
-        blk[1, 0, 2] = cm * (-Acx * tha + AIisa_x)
-        blk[1, 1, 2] = cm * (-Acy * tha + AIisa_y)
-        blk[1, 2, 2] = cm * (-(Acx * aRx + Acy * aRy))
+        blk[1, 0, 2] = cm * (-f.Acx * f.tha + f.AIisa_x)
+        blk[1, 1, 2] = cm * (-f.Acy * f.tha + f.AIisa_y)
+        blk[1, 2, 2] = cm * (-(f.Acx * f.aRx + f.Acy * f.aRy))
         # F = -Q_v - Q_g: d/d th and d/d th'
         # Q_v,R = th'^2 A c_u - 2 th' AĨ I_S q_f'
-        blk[1, 0, 2] -= cf * (thd * thd * AIcx + 2.0 * thd * Aisv_x)
-        blk[1, 1, 2] -= cf * (thd * thd * AIcy + 2.0 * thd * Aisv_y)
-        blk[2, 0, 2] = -cf * (2.0 * thd * Acx - 2.0 * AIisv_x)
-        blk[2, 1, 2] = -cf * (2.0 * thd * Acy - 2.0 * AIisv_y)
+        blk[1, 0, 2] -= cf * (f.thd * f.thd * f.AIcx + 2.0 * f.thd * f.Aisv_x)
+        blk[1, 1, 2] -= cf * (f.thd * f.thd * f.AIcy + 2.0 * f.thd * f.Aisv_y)
+        blk[2, 0, 2] = -cf * (2.0 * f.thd * f.Acx - 2.0 * f.AIisv_x)
+        blk[2, 1, 2] = -cf * (2.0 * f.thd * f.Acy - 2.0 * f.AIisv_y)
         # Q_v,th = -2 th' (I_0S + M_ff q_f).q_f'  -> d/d th' only
-        blk[2, 2, 2] = cf * 2.0 * (i0s_v + qMv)
+        blk[2, 2, 2] = cf * 2.0 * (f.i0s_v + f.qMv)
         # Q_g,th = (AĨ c_u).g -> d/d th = -(A c_u).g
-        blk[1, 2, 2] += cf * (Acx * gx + Acy * gy)
+        blk[1, 2, 2] += cf * (f.Acx * gx + f.Acy * gy)
         for i in range(3):
             for j in range(3):
                 p = B.block[b, i, j]
@@ -85,8 +74,8 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
         for k in range(B.flex[b, 0], B.flex[b, 1]):
             isx = Fx.IS[k, 0]
             isy = Fx.IS[k, 1]
-            Aisx = c * isx - s * isy
-            Aisy = s * isx + c * isy
+            Aisx = f.c * isx - f.s * isy
+            Aisy = f.s * isx + f.c * isy
             AIisx = -Aisy
             AIisy = Aisx
             bd = Fx.border[k]
@@ -94,21 +83,21 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
             # -dQ_v,R/dq_f = -th'^2 A I_S ; -dQ_v,R/dq_f' = 2 th' AĨ I_S
             p = bd[0, 0]
             if p >= 0:
-                add_split(out, C, p, cm * Aisx, cm * AIisx * tha - cf * thd * thd * Aisx,
-                          cf * 2.0 * thd * AIisx)
+                add_split(out, C, p, cm * Aisx, cm * AIisx * f.tha - cf * f.thd * f.thd * Aisx,
+                          cf * 2.0 * f.thd * AIisx)
             p = bd[0, 1]
             if p >= 0:
-                add_split(out, C, p, cm * Aisy, cm * AIisy * tha - cf * thd * thd * Aisy,
-                          cf * 2.0 * thd * AIisy)
+                add_split(out, C, p, cm * Aisy, cm * AIisy * f.tha - cf * f.thd * f.thd * Aisy,
+                          cf * 2.0 * f.thd * AIisy)
             mthf = Fx.I0IS[k] + Sq[k]
             # Q_v,th = -2 th' (I_0S.q_f' + q_f^T M q_f'): d/dq_f = -2 th' (M q_f')_k,
             # d/dq_f' = -2 th' (I_0S + M q_f)_k ; Q_g,th: d/dq_f = (AĨ I_S)_k . g
             p = bd[0, 2]
             if p >= 0:
                 add_split(out, C, p, cm * mthf,
-                          cm * (AIisx * aRx + AIisy * aRy + tha * 2.0 * (Fx.I0S[k] + Mq[k])
-                                - Sa[k]) - cf * (-2.0 * thd * Mv[k] + (AIisx * gx + AIisy * gy)),
-                          cf * 2.0 * thd * (Fx.I0S[k] + Mq[k]))
+                          cm * (AIisx * f.aRx + AIisy * f.aRy + f.tha * 2.0 * (Fx.I0S[k] + Mq[k])
+                                - Sa[k]) - cf * (-2.0 * f.thd * Mv[k] + (AIisx * gx + AIisy * gy)),
+                          cf * 2.0 * f.thd * (Fx.I0S[k] + Mq[k]))
             # row f_k; columns R_x, R_y, th
             p = bd[1, 0]
             if p >= 0:
@@ -121,8 +110,8 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
             p = bd[1, 2]
             if p >= 0:
                 add_split(out, C, p, cm * mthf,
-                          cm * (AIisx * aRx + AIisy * aRy) - cf * (AIisx * gx + AIisy * gy),
-                          -cf * (2.0 * thd * (Fx.I0S[k] + Mq[k]) - 2.0 * Sv[k]))
+                          cm * (AIisx * f.aRx + AIisy * f.aRy) - cf * (AIisx * gx + AIisy * gy),
+                          -cf * (2.0 * f.thd * (Fx.I0S[k] + Mq[k]) - 2.0 * Sv[k]))
     _clear(B, E, bodies, elems, all_flex, W)
     _element_blocks(B, E, x, cm, cf, C, out)
 

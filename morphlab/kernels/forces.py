@@ -21,7 +21,7 @@ for the length
 import numpy as np
 
 from ._jit import inner, kernel
-from .joints import side_terms
+from .joints import point_angle, point_dofs, side_terms
 from .schema import Kind, design, pattern, register, topology
 
 #: Kinds of spring-damper (``springs.kind``): distance of two points, relative rotation.
@@ -35,7 +35,6 @@ SPRINGS = register(Kind("springs", [
     pattern("map", (2, 2, 6, 6), "positions of (row DOF j of side r, column DOF k of side c)"),
 ], "a spring-damper between two points or two bodies' rotations",
    optional=True, module=__name__))
-Springs = SPRINGS.arrays
 
 
 @SPRINGS.pattern_of
@@ -65,17 +64,6 @@ def _put(G, row, off, t, sign):
 
 
 @inner
-def _psi(dofs, w, zero):
-    """``w[theta] + w[phi]`` of a side (zero where absent)."""
-    out = zero
-    if dofs[2] >= 0:
-        out += w[dofs[2]]
-    if dofs[5] >= 0:
-        out += w[dofs[5]]
-    return out
-
-
-@inner
 def _terms(A, i, q, v, G):
     """Measure ``s`` and rate ``s'`` of spring ``i``, with its derivatives over the twelve
     local DOFs (side P's six, then side Q's) in ``G`` (6, 12): row 0 ``grad s``, row 1
@@ -95,14 +83,13 @@ def _terms(A, i, q, v, G):
             G[row, col] = 0.0
         if d >= 0:
             G[4, col] = v[d]
-    dP = (dofs[0, 0], dofs[0, 1], dofs[0, 2], dofs[0, 3], dofs[0, 4], dofs[0, 5])
-    dQ = (dofs[1, 0], dofs[1, 1], dofs[1, 2], dofs[1, 3], dofs[1, 4], dofs[1, 5])
+    dP, dQ = point_dofs(dofs[0]), point_dofs(dofs[1])
     if A.kind[i] == SPRING_ANGLE:
         for col in (2, 5):
             G[0, col] = 1.0
             G[0, col + 6] = -1.0
-        s = _psi(dP, q, zero) - _psi(dQ, q, zero)
-        sd = _psi(dP, v, zero) - _psi(dQ, v, zero)
+        s = point_angle(dP, q, zero) - point_angle(dQ, q, zero)
+        sd = point_angle(dP, v, zero) - point_angle(dQ, v, zero)
         return s, sd, zero, zero, zero + 1.0
     # a ground side (no DOFs) gives its body-frame point: its global position
     xP, _, DxP, _, _, _ = side_terms(np.int64(0), dP, u[i, 0, 0], u[i, 0, 1], q, v, v)

@@ -58,8 +58,6 @@ ROWS = register(Kind("rows", [
     timed("cdd", (), "its second time derivative"),
 ], "a scalar constraint row between two material points",
    timing="drive", module=__name__))
-Rows = ROWS.arrays
-RowsTimes = ROWS.times
 
 # entries of a side's 6 x 6 Hessian that can be nonzero (theta-theta, theta-w, w-theta)
 HESS_ENTRIES = ((2, 2), (2, 3), (3, 2), (2, 4), (4, 2))
@@ -191,6 +189,25 @@ def point_side(kind, dofs, ux0, uy0, q, v, a):
 
 
 @inlined
+def point_dofs(dofs):
+    """The DOFs ``(R_x, R_y, theta, u, v, phi)`` of a point as a 6-tuple, from its row
+    ``dofs`` (6,) (-1: absent)."""
+    return (dofs[0], dofs[1], dofs[2], dofs[3], dofs[4], dofs[5])
+
+
+@inner
+def point_angle(dofs, w, zero):
+    """``w[theta] + w[phi]`` at a point of the DOFs ``dofs`` (6-tuple; a term is zero where
+    its DOF is absent): the point's rotation, or its rate, for ``w`` = q, q'."""
+    out = zero
+    if dofs[2] >= 0:
+        out += w[dofs[2]]
+    if dofs[5] >= 0:
+        out += w[dofs[5]]
+    return out
+
+
+@inlined
 def _scaled(x, t):
     return (x * t[0], x * t[1], x * t[2], x * t[3], x * t[4], x * t[5])
 
@@ -202,14 +219,34 @@ def _side(A, i, side, q, v, a):
     side's coefficient in the row: 1 for side 0, minus one for side 1 (minus the ratio for a
     gear row)."""
     kind = A.kind[i]
-    d = (A.dofs[i, side, 0], A.dofs[i, side, 1], A.dofs[i, side, 2], A.dofs[i, side, 3],
-         A.dofs[i, side, 4], A.dofs[i, side, 5])
+    d = point_dofs(A.dofs[i, side])
     sign = 1.0 + 0.0 * A.u0[i, 1, 2]
     if side == 1:
         sign = -A.u0[i, 1, 2] if kind == ROW_GEAR else -sign
     g, vHv, grad, Hv, Ha, dvHv = point_side(kind, d, A.u0[i, side, 0], A.u0[i, side, 1], q, v,
                                             a)
     return sign, g, vHv, grad, Hv, Ha, dvHv, d
+
+
+@inlined
+def add_row_entries(w, C, gr, hv, ha, dvhv, p_row, p_col, out):
+    """The entries of one DOF of a constraint row (weights ``w``,
+    :class:`~morphlab.kernels.types.Weights`) in the outputs ``out`` (m, nnz) of the
+    coefficients ``C`` (m, 3): at ``p_row`` (the row's column of the DOF) the derivative of
+    ``scale (wcm J a - wcf F_c)``, at ``p_col`` (the DOF's entry in the multiplier's column)
+    ``wl scale J`` (-1: absent). ``gr``, ``hv``, ``ha``, ``dvhv``: the DOF's entries of the
+    row's ``J``, ``H q'``, ``H q''`` and ``d(q'^T H q')/dq``."""
+    dFc_dq = -dvhv - w.b1 * hv - w.b0 * gr
+    dFc_dv = -2.0 * hv - w.b1 * gr
+    x0 = w.scale * w.wcm * gr
+    xq = w.scale * (w.wcm * ha - w.wcf * dFc_dq)
+    xv = -w.scale * w.wcf * dFc_dv
+    if p_row >= 0:
+        for r in range(C.shape[0]):
+            out[r, p_row] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
+    if p_col >= 0:
+        for r in range(C.shape[0]):
+            out[r, p_col] += C[r, 0] * w.wl * w.scale * gr
 
 
 @inner
@@ -254,30 +291,16 @@ def matrix(A, x, w, C, out):
     if A is None:  # the model has none of this kind
         return
     q, v, a, lam = x.q, x.v, x.a, x.lam
-    scale, ccm, ccf, cl = w.scale, w.wcm, w.wcf, w.wl
+    cl = w.wl
     for i in range(A.kind.shape[0]):
         kind = A.kind[i]
         lam_i = lam[A.con[i]]
         for side in range(2):
             sign, _, _, grad, Hv, Ha, dvHv, d = _side(A, i, side, q, v, a)
             for j in range(6):
-                if d[j] < 0:
-                    continue
-                gr = sign * grad[j]
-                # constraint row: d/da of wcm J a - wcf F_c
-                dFc_dq = -(sign * dvHv[j]) - w.b1 * (sign * Hv[j]) - w.b0 * gr
-                dFc_dv = -2.0 * (sign * Hv[j]) - w.b1 * gr
-                x0 = scale * ccm * gr
-                xq = scale * (ccm * (sign * Ha[j]) - ccf * dFc_dq)
-                xv = -scale * ccf * dFc_dv
-                p = A.row[i, side, j]
-                if p >= 0:
-                    for r in range(C.shape[0]):
-                        out[r, p] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
-                p = A.col[i, side, j]
-                if p >= 0:
-                    for r in range(C.shape[0]):
-                        out[r, p] += C[r, 0] * cl * scale * gr
+                if d[j] >= 0:
+                    add_row_entries(w, C, sign * grad[j], sign * Hv[j], sign * Ha[j],
+                                    sign * dvHv[j], A.row[i, side, j], A.col[i, side, j], out)
             if kind != ROW_X and kind != ROW_Y:
                 continue
             # the Hessian terms bh2 cl lam H belong to Dq alone

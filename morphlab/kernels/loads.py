@@ -24,9 +24,18 @@ with the derivatives in their place.
 """
 
 import numpy as np
+from numba.extending import overload
 
 from ._jit import inner
-from .joints import hessian_coordinates, side_hessian, side_terms
+from .joints import (
+    ROW_X,
+    ROW_Y,
+    hessian_coordinates,
+    point_angle,
+    point_dofs,
+    side_hessian,
+    side_terms,
+)
 from .schema import Kind, design, pattern, register, timed, topology
 
 LOADS = register(Kind("loads", [
@@ -36,16 +45,12 @@ LOADS = register(Kind("loads", [
     timed("F", (2,), "the force (global components) [force]", linear=True),
 ], "a point force of fixed global direction",
    optional=True, timing="scale", work=True, module=__name__))
-Loads = LOADS.arrays
-LoadsTimes = LOADS.times
 
 TORQUES = register(Kind("torques", [
     topology("dofs", (2,), "DOF of the body angle and of a nodal rotation (-1: none)"),
     timed("T", (), "the torque [force length]", linear=True),
 ], "a torque on a body (and a beam node)",
    optional=True, timing="scale", work=True, module=__name__))
-Torques = TORQUES.arrays
-TorquesTimes = TORQUES.times
 
 LINES = register(Kind("lines", [
     design("u0", (3,), "int ds, int u0 ds of the element (undeformed, in its frame)"),
@@ -56,8 +61,6 @@ LINES = register(Kind("lines", [
     timed("q", (2,), "the load per length (global components) [force/length]"),
 ], "a loaded element of a line load",
    optional=True, timing="scale", work=True, module=__name__))
-Lines = LINES.arrays
-LinesTimes = LINES.times
 
 
 @LOADS.pattern_of
@@ -118,31 +121,63 @@ def add_point_stiffness(dofs, ux0, uy0, q, s, F0, F1, m, row):
                 row[p] -= s * Fc * h
 
 
+def turned(A, q, i, Fx, Fy):
+    """The force of point item ``i`` of table ``A`` from its time value ``(Fx, Fy)``, and its
+    derivative along the point's rotation psi: ``(F_x, F_y, dF_x/dpsi, dF_y/dpsi)``. A table
+    with a field ``psi0`` (:data:`morphlab.kernels.pressure.FOLLOWERS`) turns the force with
+    the point, ``F = A(psi - psi0) F_0``; any other (:data:`LOADS`) keeps its direction
+    (module docstring). Decided when the kernel is typed, not per call."""
+
+
+@overload(turned)
+def _turned_typed(A, q, i, Fx, Fy):
+    if "psi0" not in getattr(A, "fields", ()):
+        return lambda A, q, i, Fx, Fy: (Fx, Fy, Fx * 0.0, Fy * 0.0)
+
+    def follower(A, q, i, Fx, Fy):
+        zero = q[0] * 0.0 + A.psi0[i] * 0.0
+        psi = point_angle(point_dofs(A.dofs[i]), q, zero) - A.psi0[i]
+        c, s = np.cos(psi), np.sin(psi)
+        return c * Fx - s * Fy, s * Fx + c * Fy, -s * Fx - c * Fy, c * Fx - s * Fy
+    return follower
+
+
 @inner
-def load_residual(A, q, wf, T, t, k, items, R):
-    """Subtract ``wf Q_ext`` of the point forces ``items`` from the equation rows of ``R``."""
+def point_force_residual(A, q, wf, T, t, k, items, R):
+    """Subtract ``wf grad^T F`` of the point forces ``items`` of table ``A`` (fixed-direction
+    or follower forces, :func:`turned`) from the equation rows of ``R``."""
     if A is None:  # the model has none of this kind
         return
     for i in items:
-        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
-                A.dofs[i, 5])
-        add_point_force(dofs, A.u0[i, 0], A.u0[i, 1], q, wf, T.F[t, k, i, 0], T.F[t, k, i, 1],
-                        R)
+        Fx, Fy, _, _ = turned(A, q, i, T.F[t, k, i, 0], T.F[t, k, i, 1])
+        add_point_force(point_dofs(A.dofs[i]), A.u0[i, 0], A.u0[i, 1], q, wf, Fx, Fy, R)
 
 
 @inner
-def load_matrix(A, q, cf, T, t, k, C, out):
-    """Add ``-cf d(Q_ext)/dq`` of the point forces to the ``Dq`` part of ``out`` (m, nnz)."""
+def point_force_matrix(A, q, cf, T, t, k, C, out):
+    """Add ``-cf d(grad^T F)/dq`` of the point forces of table ``A`` to the ``Dq`` part of
+    ``out`` (m, nnz): the point's Hessian against ``F`` and, for a follower, ``grad^T
+    dF/dpsi`` in the columns of theta and phi."""
     if A is None:  # the model has none of this kind
         return
     for i in range(A.dofs.shape[0]):
-        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
-                A.dofs[i, 5])
+        dofs = point_dofs(A.dofs[i])
+        m = A.map[i]
+        Fx, Fy, dFx, dFy = turned(A, q, i, T.F[t, k, i, 0], T.F[t, k, i, 1])
         for r in range(C.shape[0]):
             cq = C[r, 1]
-            if cq != 0.0:
-                add_point_stiffness(dofs, A.u0[i, 0], A.u0[i, 1], q, cf * cq, T.F[t, k, i, 0],
-                                    T.F[t, k, i, 1], A.map[i], out[r])
+            if cq == 0.0:
+                continue
+            add_point_stiffness(dofs, A.u0[i, 0], A.u0[i, 1], q, cf * cq, Fx, Fy, m, out[r])
+            if dFx == 0.0 and dFy == 0.0:  # a fixed direction (or no force)
+                continue
+            for comp in (ROW_X, ROW_Y):
+                _, _, grad, _, _, _ = side_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
+                dF = dFx if comp == ROW_X else dFy
+                for j in range(6):
+                    for n in (2, 5):
+                        if m[j, n] >= 0 and dofs[n] >= 0:
+                            out[r, m[j, n]] -= cf * cq * grad[j] * dF
 
 
 @inner
@@ -169,20 +204,19 @@ def line_residual(A, q, wf, T, t, k, items, R):
 
 @inner
 def line_matrix(A, q, cf, T, t, k, C, out):
-    """Add ``-cf d(Q_ext)/dq`` of the line loads to the ``Dq`` part of ``out`` (m, nnz)."""
+    """Add ``-cf d(Q_ext)/dq`` of the line loads to the ``Dq`` part of ``out`` (m, nnz):
+    ``dQ_theta/dtheta = -A^T q . (U + N d)``, ``dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q``."""
     if A is None:  # the model has none of this kind
         return
-    for r in range(C.shape[0]):
-        cq = C[r, 1]
-        if cq == 0.0:
-            continue
-        data = out[r]
-        for e in range(A.ref.shape[0]):
-            qx, qy = cf * cq * T.q[t, k, e, 0], cf * cq * T.q[t, k, e, 1]
-            # dQ_theta/dtheta = -A^T q . (U + N d); dQ_theta/dd = dQ_d/dtheta = N^T (AĨ)^T q
-            m = A.map[e]
-            th = q[A.ref[e, 2]]
-            c, s = np.cos(th), np.sin(th)
+    for e in range(A.ref.shape[0]):
+        m = A.map[e]
+        th = q[A.ref[e, 2]]
+        c, s = np.cos(th), np.sin(th)
+        for r in range(C.shape[0]):
+            scale = cf * C[r, 1]
+            if scale == 0.0:
+                continue
+            qx, qy = scale * T.q[t, k, e, 0], scale * T.q[t, k, e, 1]
             ax, ay = c * qx + s * qy, c * qy - s * qx
             mom = ax * A.u0[e, 1] + ay * A.u0[e, 2]
             for j in range(6):
@@ -191,8 +225,8 @@ def line_matrix(A, q, cf, T, t, k, C, out):
                     mom += (ax * A.N[e, 0, j] + ay * A.N[e, 1, j]) * q[d]
                     h = ay * A.N[e, 0, j] - ax * A.N[e, 1, j]
                     if m[0, 1 + j] >= 0:
-                        data[m[0, 1 + j]] -= h
+                        out[r, m[0, 1 + j]] -= h
                     if m[1 + j, 0] >= 0:
-                        data[m[1 + j, 0]] -= h
+                        out[r, m[1 + j, 0]] -= h
             if m[0, 0] >= 0:
-                data[m[0, 0]] += mom
+                out[r, m[0, 0]] += mom

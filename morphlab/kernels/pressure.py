@@ -27,7 +27,10 @@ here, so Newton converges quadratically under a follower load.
 **Follower force.** A point force whose direction turns with the material point's rotation
 ``psi`` (the body angle, plus the nodal rotation at a beam node): ``F = A(psi - psi_0) F_0``,
 ``F_0`` given in the initial configuration. Its generalized force is ``grad^T F`` with the
-gradient of the point's position (:func:`morphlab.kernels.joints.side_terms`).
+gradient of the point's position (:func:`morphlab.kernels.joints.side_terms`). Its kernels are
+those of the fixed-direction point force (:func:`morphlab.kernels.loads.point_force_residual`,
+:func:`~morphlab.kernels.loads.point_force_matrix`), which turn a table's forces when it has
+the field ``psi0``.
 
 Both residuals are linear in the load values (time fields): the pseudo-loads of a load's
 magnitude are these kernels evaluated with its derivative in its place. The pressure is
@@ -38,8 +41,6 @@ the integrals, which change with the beam's geometry, take the perturbed path.
 import numpy as np
 
 from ._jit import inner
-from .joints import ROW_X, ROW_Y, side_terms
-from .loads import add_point_force, add_point_stiffness
 from .schema import Kind, design, pattern, register, timed, topology
 
 PRESSURES = register(Kind("pressures", [
@@ -57,8 +58,6 @@ PRESSURES = register(Kind("pressures", [
           linear=True),
 ], "a loaded element of a follower pressure",
    optional=True, timing="scale", work=True, module=__name__))
-Pressures = PRESSURES.arrays
-PressuresTimes = PRESSURES.times
 
 FOLLOWERS = register(Kind("followers", [
     design("u0", (2,), "body-frame point of application"),
@@ -68,8 +67,6 @@ FOLLOWERS = register(Kind("followers", [
     timed("F", (2,), "the force in the initial configuration's axes [force]", linear=True),
 ], "a point force that turns with the material point",
    optional=True, timing="scale", work=True, module=__name__))
-Followers = FOLLOWERS.arrays
-FollowersTimes = FOLLOWERS.times
 
 
 def _local(ref: np.ndarray, dofs: np.ndarray) -> np.ndarray:
@@ -210,57 +207,3 @@ def pressure_matrix(A, q, cf, T, t, k, C, out):
                         p = m[3 + i, 3 + j]
                         if p >= 0:
                             data[p] -= P * A.G[e, a, i, j]
-
-
-@inner
-def _follower_force(A, q, i):
-    """The global force per unit of the time value: ``A(psi - psi0)`` (its 2 x 2 entries
-    ``(c, s)``) of follower ``i`` at ``q``; ``psi`` the body angle plus the nodal rotation."""
-    zero = q[0] * 0.0 + A.psi0[i] * 0.0
-    psi = zero - A.psi0[i]
-    if A.dofs[i, 2] >= 0:
-        psi += q[A.dofs[i, 2]]
-    if A.dofs[i, 5] >= 0:
-        psi += q[A.dofs[i, 5]]
-    return np.cos(psi), np.sin(psi)
-
-
-@inner
-def follower_residual(A, q, wf, T, t, k, items, R):
-    """Subtract ``wf grad^T F`` of the follower forces ``items`` from the equation rows."""
-    if A is None:  # the model has none of this kind
-        return
-    for i in items:
-        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
-                A.dofs[i, 5])
-        c, s = _follower_force(A, q, i)
-        F0x, F0y = T.F[t, k, i, 0], T.F[t, k, i, 1]
-        add_point_force(dofs, A.u0[i, 0], A.u0[i, 1], q, wf, c * F0x - s * F0y,
-                        s * F0x + c * F0y, R)
-
-
-@inner
-def follower_matrix(A, q, cf, T, t, k, C, out):
-    """Add ``-cf d(grad^T F)/dq`` of the follower forces to the ``Dq`` part of ``out``: the
-    point's Hessian against ``F`` and ``grad^T dF/dpsi`` in the columns of theta and phi."""
-    if A is None:  # the model has none of this kind
-        return
-    for i in range(A.dofs.shape[0]):
-        dofs = (A.dofs[i, 0], A.dofs[i, 1], A.dofs[i, 2], A.dofs[i, 3], A.dofs[i, 4],
-                A.dofs[i, 5])
-        m = A.map[i]
-        c, s = _follower_force(A, q, i)
-        F0x, F0y = T.F[t, k, i, 0], T.F[t, k, i, 1]
-        dF = (-s * F0x - c * F0y, c * F0x - s * F0y)  # A Ĩ F0 = dF/dpsi
-        for r in range(C.shape[0]):
-            cq = C[r, 1]
-            if cq == 0.0:
-                continue
-            add_point_stiffness(dofs, A.u0[i, 0], A.u0[i, 1], q, cf * cq, c * F0x - s * F0y,
-                                s * F0x + c * F0y, m, out[r])
-            for comp in (ROW_X, ROW_Y):
-                _, _, grad, _, _, _ = side_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
-                for j in range(6):
-                    for n in (2, 5):
-                        if m[j, n] >= 0 and dofs[n] >= 0:
-                            out[r, m[j, n]] -= cf * cq * grad[j] * dF[comp]

@@ -27,6 +27,7 @@ A kind is ``optional`` when most models have none: a system without such items h
 
 from __future__ import annotations
 
+import sys
 from collections import namedtuple
 from typing import NamedTuple
 
@@ -88,6 +89,7 @@ class Kind:
         self.doc = doc
         self.optional = optional
         self.timing = timing
+        self.module = module
         self.coordinates = None
         self.reactions = None
         names = [f.name for f in self.fields]
@@ -106,8 +108,8 @@ class Kind:
                              "residual must be linear in all its linear fields together")
         self.fields_by_name = {f.name: f for f in self.fields}
         title = "".join(p.capitalize() for p in name.split("_"))
-        # the named tuples live in the kind's kernel module (``module``, which binds them to
-        # these names): Numba's disk cache finds a type again by its module and name
+        # the named tuples live in the kind's kernel module (``module``; :func:`register`
+        # binds them there): Numba's disk cache finds a type again by its module and name
         self.arrays = namedtuple(title, [f.name for f in self.fields if f.role != TIME],
                                  module=module)
         timed = [f.name for f in self.fields if f.role == TIME]
@@ -173,8 +175,15 @@ KINDS: dict = {}
 
 
 def register(kind: Kind) -> Kind:
-    """Add ``kind`` to :data:`KINDS` (at import of its kernel module)."""
+    """Add ``kind`` to :data:`KINDS` (at import of its kernel module, ``kind.module``) and bind
+    its named tuples in that module under their names (``Loads``, ``LoadsTimes``, ...), where
+    Numba's disk cache and pickle look a type up."""
     if kind.name in KINDS and KINDS[kind.name] is not kind:
         raise ValueError(f"two kinds named {kind.name!r}")
     KINDS[kind.name] = kind
+    if kind.module is not None:
+        module = sys.modules[kind.module]
+        for tuple_type in (kind.arrays, kind.times):
+            if tuple_type is not None:
+                setattr(module, tuple_type.__name__, tuple_type)
     return kind

@@ -13,7 +13,7 @@ import numpy as np
 
 from ._jit import inner, kernel
 from .joints import add_hessian as _add_side_hessian
-from .joints import side_hessian, side_terms
+from .joints import add_row_entries, point_angle, point_dofs, side_hessian, side_terms
 from .schema import Kind, design, pattern, register, timed, topology
 
 SLIDES = register(Kind("slides", [
@@ -28,8 +28,6 @@ SLIDES = register(Kind("slides", [
     timed("cdd", (), "its second time derivative"),
 ], "the slide row of a prismatic joint",
    optional=True, timing="drive", module=__name__))
-Slides = SLIDES.arrays
-SlidesTimes = SLIDES.times
 
 
 @SLIDES.pattern_of
@@ -68,27 +66,10 @@ def reaction_directions(A, items, sides, q) -> np.ndarray:
 
 
 @inner
-def _dofs(A, i, side):
-    return (A.dofs[i, side, 0], A.dofs[i, side, 1], A.dofs[i, side, 2], A.dofs[i, side, 3],
-            A.dofs[i, side, 4], A.dofs[i, side, 5])
-
-
-@inner
 def _lin(x, p, y, r):
     """The 6-tuple ``x p + y r`` (``p``, ``r`` 6-tuples)."""
     return (x * p[0] + y * r[0], x * p[1] + y * r[1], x * p[2] + y * r[2], x * p[3] + y * r[3],
             x * p[4] + y * r[4], x * p[5] + y * r[5])
-
-
-@inner
-def _psi(dofs, w, zero):
-    """``w[theta] + w[phi]`` of a side (zero where absent)."""
-    out = zero
-    if dofs[2] >= 0:
-        out += w[dofs[2]]
-    if dofs[5] >= 0:
-        out += w[dofs[5]]
-    return out
 
 
 @inner
@@ -117,16 +98,16 @@ def _slide(A, i, q, v, a):
     ``H = n.H_d + e_psi (t^T D) + (t^T D)^T e_psi^T - (n.d) e_psi e_psi^T``;
     ``v^T H v = n.(v^T H_d v) + 2 psi' t.(D v) - psi'^2 n.d``.
     """
-    dP, dQ = _dofs(A, i, 0), _dofs(A, i, 1)
+    dP, dQ = point_dofs(A.dofs[i, 0]), point_dofs(A.dofs[i, 1])
     uP, uQ = A.u0[i, 0], A.u0[i, 1]
     zero = q[0] * 0.0 + uP[0] * 0.0
     (gxP, vxP, grxP, HvxP, HaxP, dvxP), (gyP, vyP, gryP, HvyP, HayP, dvyP) = _point(
         dP, uP[0], uP[1], q, v, a)
     (gxQ, vxQ, grxQ, HvxQ, HaxQ, dvxQ), (gyQ, vyQ, gryQ, HvyQ, HayQ, dvyQ) = _point(
         dQ, uQ[0], uQ[1], q, v, a)
-    psi = _psi(dQ, q, zero) + uQ[2]
-    pv = _psi(dQ, v, zero)
-    pa = _psi(dQ, a, zero)
+    psi = point_angle(dQ, q, zero) + uQ[2]
+    pv = point_angle(dQ, v, zero)
+    pa = point_angle(dQ, a, zero)
     nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
     tx, ty = -ny, nx
     dx, dy = gxP - gxQ, gyP - gyQ
@@ -171,11 +152,11 @@ def _add_point_hessian(d, u, q, cx, cy, hmap, data):
 def _add_hessian(A, i, q, coef, data):
     """Add ``coef H`` of slide row ``i`` to ``data`` at ``A.H[i, r, c, j, k]`` (``r``, ``c``:
     the sides of row and column; 0 = P, 1 = Q)."""
-    dP, dQ = _dofs(A, i, 0), _dofs(A, i, 1)
+    dP, dQ = point_dofs(A.dofs[i, 0]), point_dofs(A.dofs[i, 1])
     uP, uQ = A.u0[i, 0], A.u0[i, 1]
     hmap = A.H[i]
     zero = q[0] * 0.0 + uP[0] * 0.0
-    psi = _psi(dQ, q, zero) + uQ[2]
+    psi = point_angle(dQ, q, zero) + uQ[2]
     nx, ny = np.cos(psi) + zero, np.sin(psi) + zero
     (gxP, _, grxP, _, _, _), (gyP, _, gryP, _, _, _) = _point(dP, uP[0], uP[1], q, q, q)
     (gxQ, _, grxQ, _, _, _), (gyQ, _, gryQ, _, _, _) = _point(dQ, uQ[0], uQ[1], q, q, q)
@@ -200,6 +181,13 @@ def _add_hessian(A, i, q, coef, data):
 
 
 @inner
+def _rate(A, i, grad, w, zero):
+    """``J w`` of slide ``i`` for its two sides' gradients ``grad`` (``w`` = q', q'')."""
+    return (_dot(grad[0], point_dofs(A.dofs[i, 0]), w, zero)
+            + _dot(grad[1], point_dofs(A.dofs[i, 1]), w, zero))
+
+
+@inner
 def residual(A, x, w, T, t, k, rows, n_dof, R):
     """As :func:`morphlab.kernels.joints.residual`, for the slide rows ``rows``."""
     if A is None:  # the model has none of this kind
@@ -209,14 +197,12 @@ def residual(A, x, w, T, t, k, rows, n_dof, R):
     for i in rows:
         g, vHv, grad, _, _, _ = _slide(A, i, q, v, a)
         con = A.con[i]
-        Ja = zero
-        Jv = zero
+        Ja = _rate(A, i, grad, a, zero)
+        Jv = _rate(A, i, grad, v, zero)
         for side in range(2):
             for j in range(6):
                 d = A.dofs[i, side, j]
                 if d >= 0:
-                    Ja += grad[side][j] * a[d]
-                    Jv += grad[side][j] * v[d]
                     R[d] += w.wl * grad[side][j] * lam[con]
         Fc = (-vHv + T.cdd[t, k, i] - w.b1 * (Jv - T.cd[t, k, i])
               - w.b0 * (g - T.c[t, k, i]))
@@ -229,27 +215,14 @@ def matrix(A, x, w, C, out):
     if A is None:  # the model has none of this kind
         return
     q, v, a, lam = x.q, x.v, x.a, x.lam
-    scale, ccm, ccf, cl = w.scale, w.wcm, w.wcf, w.wl
+    cl = w.wl
     for i in range(A.con.shape[0]):
         _, _, grad, Hv, Ha, dvHv = _slide(A, i, q, v, a)
         for side in range(2):
             for j in range(6):
-                if A.dofs[i, side, j] < 0:
-                    continue
-                gr = grad[side][j]
-                dFc_dq = -dvHv[side][j] - w.b1 * Hv[side][j] - w.b0 * gr
-                dFc_dv = -2.0 * Hv[side][j] - w.b1 * gr
-                x0 = scale * ccm * gr
-                xq = scale * (ccm * Ha[side][j] - ccf * dFc_dq)
-                xv = -scale * ccf * dFc_dv
-                p = A.row[i, side, j]
-                if p >= 0:
-                    for r in range(C.shape[0]):
-                        out[r, p] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
-                p = A.col[i, side, j]
-                if p >= 0:
-                    for r in range(C.shape[0]):
-                        out[r, p] += C[r, 0] * cl * scale * gr
+                if A.dofs[i, side, j] >= 0:
+                    add_row_entries(w, C, grad[side][j], Hv[side][j], Ha[side][j],
+                                    dvHv[side][j], A.row[i, side, j], A.col[i, side, j], out)
         for r in range(C.shape[0]):
             if C[r, 1] == 0.0:
                 continue
@@ -264,11 +237,5 @@ def values(A, q, v, T, k, phi, phid):
     zero = q[0] * 0.0
     for i in range(A.con.shape[0]):
         g, _, grad, _, _, _ = _slide(A, i, q, v, v)
-        Jv = zero
-        for side in range(2):
-            for j in range(6):
-                d = A.dofs[i, side, j]
-                if d >= 0:
-                    Jv += grad[side][j] * v[d]
         phi[A.con[i]] = g - T.c[0, k, i]
-        phid[A.con[i]] = Jv - T.cd[0, k, i]
+        phid[A.con[i]] = _rate(A, i, grad, v, zero) - T.cd[0, k, i]
