@@ -89,47 +89,18 @@ def reaction_vjp(result, name: str, component: int, n: int, frame: str | None = 
     """Derivatives of ``reaction(result, name, frame)[n, component]`` (real parts), by complex
     step of :func:`reaction` at time index ``n``: with respect to ``q`` (n_dof,) and ``lam``
     (n_con,) there, and to the design data of the joint's row kinds (``{"<kind>.u0":
-    array shaped like that field}``)."""
+    array shaped like that field}``); the component's column of :func:`reaction_partials` and
+    :func:`reaction_data_gradient` at that one time."""
     s = result.system
-    rows, _ = reaction_rows(s, name)
-    q = np.real(result.q[n])[None].astype(complex)
-    lam = np.real(result.lam[n])[None].astype(complex)
-    h = 1e-30
-
-    def value(q, lam, arrays=None):
-        return _reaction(s, name, frame, q, lam, arrays)[0, component]
-
+    q, lam = result.q[n][None], result.lam[n][None]
+    _, dofs, dF_dq, rows, dF_dlam = reaction_partials(s, name, frame, q, lam)
     dq = np.zeros(s.n_dof)
-    touched = set()
-    for i in rows:
-        table = s.table(KIND_NAMES[int(s.con_kind[i])])
-        touched.update(int(d) for d in table.dofs[s.con_item[i]].ravel() if d >= 0)
-    if frame is not None:
-        touched.add(int(s.body(frame).ref[2]))
-    for d in sorted(touched):
-        qp = q.copy()
-        qp[0, d] += 1j * h
-        dq[d] = value(qp, lam).imag / h
+    dq[dofs] = dF_dq[0, :, component]
     dlam = np.zeros(s.n_con)
-    for i in rows:
-        lp = lam.copy()
-        lp[0, i] += 1j * h
-        dlam[i] = value(q, lp).imag / h
-    data = {}
-    arrays = s.arrays_as(complex)
-    for k in np.unique(np.asarray(s.con_kind)[rows]):
-        name_k = KIND_NAMES[int(k)]
-        table = getattr(arrays, name_k)
-        u0 = np.array(table.u0)
-        du = np.zeros(u0.shape)
-        for i in np.asarray(s.con_item)[rows[np.asarray(s.con_kind)[rows] == k]]:
-            for idx in np.ndindex(u0.shape[1:]):
-                up = u0.copy()
-                up[(i,) + idx] += 1j * h
-                pert = arrays._replace(**{name_k: table._replace(u0=up)})
-                du[(i,) + idx] = value(q, lam, pert).imag / h
-        data[f"{name_k}.u0"] = du
-    return dq, dlam, data
+    dlam[rows] = dF_dlam[0, :, component]
+    G = np.zeros((1, 3))
+    G[0, component] = 1.0
+    return dq, dlam, reaction_data_gradient(s, name, frame, q, lam, G)
 
 
 def _drive_rows(result, name: str) -> np.ndarray:
