@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ModelError
-from .bodies import Beam, Body, Ground, body_of, element_indices, material_point
+from .bodies import Beam, Body, Ground, body_of, material_point
 from .joints import Revolute
-from .loads import Load
+from .loads import Load, _BeamLoad
 from .profiles import Constant, Profile
 from .values import _numeric, _point, _profile, _real, _show, _upcast
 
@@ -154,13 +154,11 @@ class RotationalSpring(_SpringDamper):
 
 
 @dataclass(eq=False)
-class LineLoad(Load):
+class LineLoad(_BeamLoad):
     """A distributed load ``q * profile(t)`` [force per length of the undeformed beam] of fixed
     global direction on the elements ``elements`` of ``beam`` (element indices, 0 to
     ``n_elements - 1``; None: all; :meth:`check` makes them a sorted int64 array)."""
 
-    name: str | None
-    beam: Beam | str
     q: np.ndarray
     profile: Profile = field(default_factory=Constant)
     elements: np.ndarray | None = None
@@ -170,11 +168,6 @@ class LineLoad(Load):
     prefix = "line_load"
 
     def check(self, model: Model) -> None:
-        owner = self.owner
-        self.beam = beam = body_of(model, self.beam, owner)
-        if not isinstance(beam, Beam):
-            raise ModelError(f"{owner}: a line load acts on a beam, got {type(beam).__name__} "
-                             f"{beam.name!r}")
-        self.q = _point(self.q, "q", owner)
-        self.elements = element_indices(self.elements, beam, owner)
-        self.profile = _profile(self.profile, owner)
+        self._check_span(model)
+        self.q = _point(self.q, "q", self.owner)
+        self.profile = _profile(self.profile, self.owner)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ModelError
-from .bodies import Body, body_of, material_point
+from .bodies import Beam, Body, body_of, element_indices, material_point
 from .items import Item
 from .profiles import Constant, Profile
 from .values import _numeric, _point, _profile, _upcast
@@ -32,6 +32,33 @@ class Load(Item):
         if body is model.ground:
             raise ModelError(f"{self.owner}: cannot load the ground")
         return body
+
+
+@dataclass(eq=False)
+class _BeamLoad(Load):
+    """Base of the loads distributed over elements of one beam (line loads, pressures): their
+    first two fields, ``name`` and ``beam``, and the resolution of ``beam`` and of the kind's
+    ``elements`` field (element indices of that beam, None for all)."""
+
+    name: str | None
+    beam: Beam | str
+
+    def _check_span(self, model: Model) -> Beam:
+        """Bring ``beam`` to a beam of ``model`` and ``elements`` to a sorted int64 array of
+        its element indices; return the beam.
+
+        Raises
+        ------
+        ModelError
+            Naming the load: ``beam`` is not a beam of ``model`` (or its name), or
+            ``elements`` are not distinct element indices of it.
+        """
+        self.beam = beam = body_of(model, self.beam, self.owner)
+        if not isinstance(beam, Beam):
+            raise ModelError(f"{self.owner}: a {self.label} acts on a beam, got "
+                             f"{type(beam).__name__} {beam.name!r}")
+        self.elements = element_indices(self.elements, beam, self.owner)
+        return beam
 
 
 @dataclass(eq=False)

@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ModelError
-from .bodies import Beam, body_of, element_indices
-from .loads import Force, Load
+from .bodies import Beam
+from .loads import Force, _BeamLoad
 from .profiles import Constant, Profile
 from .values import _numeric, _profile, _real, _show, _upcast
 
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 
 @dataclass(eq=False)
-class Pressure(Load):
+class Pressure(_BeamLoad):
     """A pressure ``p(s) * profile(t)`` [force/area] normal to the deformed centre line of
     ``beam`` over ``elements``, on the beam's out-of-plane ``width`` [length]. Positive ``p``
     pushes along the left normal of the direction from the first node to the last (on a ring
@@ -32,8 +32,6 @@ class Pressure(Load):
     all). :meth:`check` makes ``p`` (n_nodes,), ``width`` (n_elements,) and ``elements`` a
     sorted int64 array."""
 
-    name: str | None
-    beam: Beam | str
     p: object
     width: object = None
     profile: Profile = field(default_factory=Constant)
@@ -45,11 +43,7 @@ class Pressure(Load):
 
     def check(self, model: Model) -> None:
         owner = self.owner
-        self.beam = beam = body_of(model, self.beam, owner)
-        if not isinstance(beam, Beam):
-            raise ModelError(f"{owner}: a pressure acts on a beam, got {type(beam).__name__} "
-                             f"{beam.name!r}")
-        self.elements = element_indices(self.elements, beam, owner)
+        beam = self._check_span(model)
         self.p = _nodal(self.p, beam, owner)
         width = beam.width if self.width is None else self.width
         if width is None:
