@@ -171,3 +171,27 @@ def check_step_matrix_by_complex_step(model, seed: int) -> None:
             got[system.indices[sl]] = data[1 + which, sl]
             assert np.abs(got - col).max() <= 1e-9 * max(np.abs(col).max(), 1.0), \
                 (which, system.unknown_names[k])
+
+
+def check_gradients_by_complex_step(build, p0: dict, responses: dict, run: dict,
+                                    cross: float | None = None) -> None:
+    """Assert that the direct and the adjoint design gradients of ``responses`` equal the
+    whole-run complex step to 1e-8 of each response's largest scaled gradient
+    (``p_i dpsi/dp_i``), and that each variable moves each response by more than 1e-4 of the
+    largest (no comparison is vacuous); ``cross``: the direct and the adjoint gradients also
+    equal each other to that fraction of the largest. ``run``: the keywords of the runs."""
+    d = ml.sensitivities(build, p0, responses, method="direct", **run)
+    a = ml.sensitivities(build, p0, responses, method="adjoint", **run)
+    cs = ml.sensitivities(build, p0, responses, method="complex-step", **run)
+    for r in responses:
+        scaled = {v: abs(p0[v] * cs.gradients[r][v]) for v in p0}
+        largest = max(scaled.values())
+        for v in p0:
+            assert scaled[v] > 1e-4 * largest, (r, v)  # every variable acts
+            ref = cs.gradients[r][v]
+            assert abs(p0[v] * (d.gradients[r][v] - ref)) <= 1e-8 * largest, (r, v)
+            assert abs(p0[v] * (a.gradients[r][v] - ref)) <= 1e-8 * largest, (r, v)
+            if cross is not None:
+                diff = abs(p0[v] * (a.gradients[r][v] - d.gradients[r][v]))
+                assert diff <= cross * largest, (r, v)
+
