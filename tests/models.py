@@ -1,6 +1,7 @@
 """Small models shared by the tests (each builds in milliseconds)."""
 
 import numpy as np
+import pytest
 
 import morphlab as ml
 
@@ -195,3 +196,18 @@ def check_gradients_by_complex_step(build, p0: dict, responses: dict, run: dict,
                 diff = abs(p0[v] * (a.gradients[r][v] - d.gradients[r][v]))
                 assert diff <= cross * largest, (r, v)
 
+
+def check_method_by_complex_step(build, p0: dict, responses: dict, method: str, run: dict):
+    """Assert that ``method``'s response values equal the whole-run complex step's (1e-12
+    relative) and its gradients those of the complex step to 1e-8 of each response's largest
+    gradient (both exact: the difference is the Newton tolerance's residue); return its
+    :class:`~morphlab.sensitivity.api.SensitivityResult`. ``run``: the keywords of the runs."""
+    got = ml.sensitivities(build, p0, responses, method=method, **run)
+    ref = ml.sensitivities(build, p0, responses, method="complex-step", **run)
+    for r in responses:
+        assert got.values[r] == pytest.approx(ref.values[r], rel=1e-12)
+        scale = max(abs(g) for g in ref.gradients[r].values())
+        assert scale > 0
+        for v in p0:
+            assert abs(got.gradients[r][v] - ref.gradients[r][v]) <= 1e-8 * scale, (r, v)
+    return got
