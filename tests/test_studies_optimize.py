@@ -35,6 +35,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 from models import tip_loaded_cantilever
+from problems import rosenbrock, rosenbrock_problem
 
 import morphlab as ml
 from morphlab.studies import Constraint, OptimizationResult, Problem, optimize
@@ -69,14 +70,6 @@ def quadratic(p):
     return {"f": f}, {"f": {"a": 2 * (a - 3) + 0.5 * (b + 1), "b": 4 * (b + 1) + 0.5 * (a - 3)}}
 
 
-def rosenbrock(p):
-    x, y = p["x"], p["y"]
-    values = {"f": (1 - x) ** 2 + 100 * (y - x * x) ** 2, "g": x + 2 * (y - 0.25) ** 2}
-    grads = {"f": {"x": -2 * (1 - x) - 400 * x * (y - x * x), "y": 200 * (y - x * x)},
-             "g": {"x": 1.0, "y": 4 * (y - 0.25)}}
-    return values, grads
-
-
 def circle(p):
     x, y = p["x"], p["y"]
     return {"f": x + y, "h": x * x + y * y}, {"f": {"x": 1.0, "y": 1.0},
@@ -86,12 +79,6 @@ def circle(p):
 def quadratic_problem(fn=quadratic):
     return Problem.from_function(fn, {"a": 0.5, "b": 4.0}, "f",
                                  bounds={"a": (0.0, 2.0), "b": (-5.0, 5.0)})
-
-
-def rosenbrock_problem(fn=rosenbrock, **kw):
-    return Problem.from_function(fn, {"x": -1.2, "y": 1.0}, "f",
-                                 constraints=[Constraint("g", upper=0.5)],
-                                 bounds={"x": (-2.0, 2.0), "y": (-1.0, 3.0)}, **kw)
 
 
 def scaled_error(problem, design, exact):

@@ -4,15 +4,14 @@ design problem. Cheap analytic tasks; what is checked is what the reports count 
 what the study did (its runs, its rounds, its budget)."""
 
 import pytest
+from problems import rosenbrock_problem
 from scipy import stats
 
 from morphlab.errors import ModelError
 from morphlab.morphing import optimization as opt
 from morphlab.studies import (
-    Constraint,
     FunctionTask,
     JointDistribution,
-    Problem,
     SearchOptions,
     StudyError,
     form,
@@ -100,20 +99,6 @@ def test_monte_carlo_propagation_prints_a_bar(capsys):
                     n=16, executor="serial", progress=True)
     assert res.n == 16
     assert capsys.readouterr().out.endswith("] 16/16 designs\n")
-
-
-def rosenbrock(p):
-    x, y = p["x"], p["y"]
-    vals = {"f": (1 - x) ** 2 + 100 * (y - x * x) ** 2, "g": x + 2 * (y - 0.25) ** 2}
-    grads = {"f": {"x": -2 * (1 - x) - 400 * x * (y - x * x), "y": 200 * (y - x * x)},
-             "g": {"x": 1.0, "y": 4 * (y - 0.25)}}
-    return vals, grads
-
-
-def rosenbrock_problem():
-    return Problem.from_function(rosenbrock, {"x": -1.2, "y": 1.0}, "f",
-                                 constraints=[Constraint("g", upper=0.5)],
-                                 bounds={"x": (-2.0, 2.0), "y": (-1.0, 3.0)})
 
 
 def test_compare_optimizers_reports_each_optimizer_within_its_budget(capsys):
