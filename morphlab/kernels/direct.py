@@ -32,7 +32,7 @@ from .assemble import matrix
 from .csc import residual, subtract_product
 from .newmark import predict, update
 from .newton import solve_factored
-from .pseudo import step_column
+from .pseudo import explicit
 
 
 class Direct(NamedTuple):
@@ -73,11 +73,14 @@ def rhs(d, M, T, sc, D, new, old, k):
     n_x = d.rhs.shape[1]
     lev = d.DQ.shape[1], d.DV.shape[1], d.DA.shape[1], d.DG.shape[1], d.DL.shape[1]
     m = k - 1 if k > 0 else 0  # the initial solve's "old" level: the initial state itself
-    col = d.column.R
+    ps, column = d.ps, d.column  # bound before the loop (adjoint._design_share says why)
+    col = column.R
     for i in range(n_x):
         for r in range(col.shape[0]):
             col[r] = 0.0
-        step_column(d.ps, M, T, sc, i, new, old, k, d.column)
+        explicit(ps, M, T, i, new, sc.w_new, k, column)
+        if sc.has_old:
+            explicit(ps, M, T, i, old, sc.w_old, m, column)
         for r in range(col.shape[0]):
             d.rhs[r, i] = -col[r]
     # the state part: R_q dq_hat + R_v dv_hat over the predictors of every column

@@ -297,13 +297,13 @@ class Frame(NamedTuple):
 
 
 @inner
-def frame(B, Fx, b, flex_on, W, q, v, a):
-    """Body ``b``'s :class:`Frame` at the state ``q, v, a`` (the body's coordinates with
-    ``flex_on`` set in the reductions; ``W`` gathered)."""
+def frame(B, b, q, v, a, sums):
+    """Body ``b``'s :class:`Frame` at the state ``q, v, a`` from its reductions ``sums``
+    (:func:`_sums`, taken by the caller: a helper that gathered them itself would receive the
+    body's tables and scratch by value, which costs more than the frame)."""
     iR0, iR1, ith = B.ref[b, 0], B.ref[b, 1], B.ref[b, 2]
     c, s = np.cos(q[ith]), np.sin(q[ith])
-    (cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a,
-     sq_a) = _sums(B, Fx, b, flex_on, W)
+    cux, cuy, isax, isay, isvx, isvy, i0s_q, i0s_v, qMq, qMv, i0is_a, sq_a = sums
     Acx, Acy = c * cux - s * cuy, s * cux + c * cuy
     Aisa_x, Aisa_y = c * isax - s * isay, s * isax + c * isay
     Aisv_x, Aisv_y = c * isvx - s * isvy, s * isvx + c * isvy
@@ -343,7 +343,7 @@ def residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W):
     gx = g[0]
     gy = g[1]
     for b in bodies:
-        f = frame(B, Fx, b, flex_on, W, q, v, a)
+        f = frame(B, b, q, v, a, _sums(B, Fx, b, flex_on, W))
         # inertia
         R[f.iR0] += wm * (f.m * f.aRx + f.AIcx * f.tha + f.Aisa_x)
         R[f.iR1] += wm * (f.m * f.aRy + f.AIcy * f.tha + f.Aisa_y)

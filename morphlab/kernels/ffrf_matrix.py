@@ -5,7 +5,7 @@ and the element blocks, exact, for all bodies in one call (``docs/theory.md`` §
 import numpy as np
 
 from ._jit import inner
-from .ffrf import _clear, _gather, _products, frame
+from .ffrf import _clear, _gather, _products, _sums, frame
 
 
 @inner
@@ -41,7 +41,7 @@ def matrix(B, Fx, E, g, x, w, C, out, W):
     # blk[k]: the 3 x 3 reference block of D0 (k = 0), Dq (1) and Dv (2)
     blk = np.zeros((3, 3, 3), dtype=out.dtype)
     for b in range(B.ref.shape[0]):
-        f = frame(B, Fx, b, all_flex, W, q, v, a)
+        f = frame(B, b, q, v, a, _sums(B, Fx, b, all_flex, W))
         # ---- 3 x 3 reference block (rows R_x, R_y, th; cols R_x, R_y, th)
         blk[:] = 0.0
         # mass

@@ -135,16 +135,6 @@ def explicit(ps, M, T, i, x, w, k, c):
         mask[ps.FIDX[j]] = False
 
 
-@inner
-def step_column(ps, M, T, sc, i, new, old, k, c):
-    """Add ``dR/dp_i`` of step ``k`` to ``c.R``: the share of the converged state ``new``
-    and, for a scheme with an old level (``sc``: :class:`~morphlab.kernels.steps.Step`), that
-    of ``old`` at time index ``k - 1`` (the initial solve has none)."""
-    explicit(ps, M, T, i, new, sc.w_new, k, c)
-    if sc.has_old:
-        explicit(ps, M, T, i, old, sc.w_old, k - 1 if k > 0 else 0, c)
-
-
 @kernel
 def explicit_column(ps, M, T, i, x, w, k, c):
     """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
