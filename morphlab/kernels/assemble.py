@@ -56,20 +56,32 @@ def residual(M, x, w, T, t, k, P, n_dof, R, W):
     ``T``: the time values (:data:`~morphlab.kernels.system.Times`) at table ``t``, time index
     ``k``; ``W``: the bodies' scratch (:class:`~morphlab.kernels.ffrf.Scratch`)."""
     # the items of kind j are P.idx[P.off[j]:P.off[j + 1]] (written out: a helper called with
-    # the constant j would be compiled once per constant)
+    # the constant j would be compiled once per constant); a kind without items in ``P`` is
+    # not called (a pseudo-load's parts hold one or two kinds: each call passes its tables)
     o, i = P.off, P.idx
-    ffrf.residual(M.bodies, M.flex, M.elements, M.gravity, x, w, i[o[BODIES]:o[BODIES + 1]],
-                  i[o[ELEMENTS]:o[ELEMENTS + 1]], P.flex, R, W)
-    joints.residual(M.rows, x, w, T.rows, t, k, i[o[ROWS]:o[ROWS + 1]], n_dof, R)
-    slides.residual(M.slides, x, w, T.slides, t, k, i[o[SLIDES]:o[SLIDES + 1]], n_dof, R)
-    loads.torque_residual(M.torques, w.wf, T.torques, t, k, i[o[TORQUES]:o[TORQUES + 1]], R)
-    loads.point_force_residual(M.loads, x.q, w.wf, T.loads, t, k, i[o[LOADS]:o[LOADS + 1]], R)
-    loads.line_residual(M.lines, x.q, w.wf, T.lines, t, k, i[o[LINES]:o[LINES + 1]], R)
-    forces.residual(M.springs, x, w.wf, i[o[SPRINGS]:o[SPRINGS + 1]], R)
-    pressure.pressure_residual(M.pressures, x.q, w.wf, T.pressures, t, k,
-                               i[o[PRESSURES]:o[PRESSURES + 1]], R)
-    loads.point_force_residual(M.followers, x.q, w.wf, T.followers, t, k,
-                               i[o[FOLLOWERS]:o[FOLLOWERS + 1]], R)
+    if o[BODIES + 1] > o[BODIES]:
+        ffrf.residual(M.bodies, M.flex, M.elements, M.gravity, x, w, i[o[BODIES]:o[BODIES + 1]],
+                      i[o[ELEMENTS]:o[ELEMENTS + 1]], P.flex, R, W)
+    if o[ROWS + 1] > o[ROWS]:
+        joints.residual(M.rows, x, w, T.rows, t, k, i[o[ROWS]:o[ROWS + 1]], n_dof, R)
+    if o[SLIDES + 1] > o[SLIDES]:
+        slides.residual(M.slides, x, w, T.slides, t, k, i[o[SLIDES]:o[SLIDES + 1]], n_dof, R)
+    if o[TORQUES + 1] > o[TORQUES]:
+        loads.torque_residual(M.torques, w.wf, T.torques, t, k, i[o[TORQUES]:o[TORQUES + 1]],
+                              R)
+    if o[LOADS + 1] > o[LOADS]:
+        loads.point_force_residual(M.loads, x.q, w.wf, T.loads, t, k,
+                                   i[o[LOADS]:o[LOADS + 1]], R)
+    if o[LINES + 1] > o[LINES]:
+        loads.line_residual(M.lines, x.q, w.wf, T.lines, t, k, i[o[LINES]:o[LINES + 1]], R)
+    if o[SPRINGS + 1] > o[SPRINGS]:
+        forces.residual(M.springs, x, w.wf, i[o[SPRINGS]:o[SPRINGS + 1]], R)
+    if o[PRESSURES + 1] > o[PRESSURES]:
+        pressure.pressure_residual(M.pressures, x.q, w.wf, T.pressures, t, k,
+                                   i[o[PRESSURES]:o[PRESSURES + 1]], R)
+    if o[FOLLOWERS + 1] > o[FOLLOWERS]:
+        loads.point_force_residual(M.followers, x.q, w.wf, T.followers, t, k,
+                                   i[o[FOLLOWERS]:o[FOLLOWERS + 1]], R)
 
 
 @kernel
