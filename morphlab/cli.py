@@ -195,6 +195,10 @@ class _Interrupts:
             raise KeyboardInterrupt
 
 
+def _quiet(report) -> None:
+    """An unraisable-exception hook that drops the report (after an interrupt)."""
+
+
 def _interrupted(exc: BaseException) -> bool:
     """A KeyboardInterrupt, or an error raised while one was under way (a compiled loop
     surfaces Ctrl-C as its own exception with the interrupt as cause or context)."""
@@ -236,6 +240,10 @@ def _report(exc: BaseException, traceback: bool) -> int:
         if traceback:
             raise exc
         print("morphlab: interrupted", file=sys.stderr)
+        # the process ends here: objects an interrupt left half built (a compilation's LLVM
+        # handles) fail in their finalizers at exit, which Python reports as "Exception
+        # ignored in ..."; that is no news after this line
+        sys.unraisablehook = _quiet
         return 130
     first = (str(exc).splitlines() or [type(exc).__name__])[0]
     if isinstance(exc, UsageError):
