@@ -127,14 +127,9 @@ def test_a_new_kind_of_item_brings_its_own_list():
     its names share the loads' namespace."""
 
     @dataclass(eq=False)
-    class Marker(Item):
+    class Marker(Item, collection="test_markers", namespace="loads", label="test marker"):
         name: str | None
         body: object
-
-        collection = "test_markers"
-        namespace = "loads"
-        label = "marker"
-        prefix = "marker"
 
         def check(self, model):
             if self.body is model.ground:
@@ -145,13 +140,35 @@ def test_a_new_kind_of_item_brings_its_own_list():
         b = m.add_rigid_body(mass=1.0, inertia=1.0, position=(1.0, 0.0), name="b")
         m.add_torque(b, 1.0, name="T")
         assert m.test_markers == []
-        assert m.add(Marker(None, b)).name == "marker0"
-        with pytest.raises(ml.ModelError, match=r"marker 'marker1': not on the ground"):
+        assert m.add(Marker(None, b)).name == "test_marker0"
+        with pytest.raises(ml.ModelError, match=r"test marker 'test_marker1': not on the ground"):
             m.add(Marker(None, m.ground))
         with pytest.raises(ml.ModelError, match=r"a load named 'T' already exists"):
             m.add(Marker("T", b))
-        assert [x.name for x in m.test_markers] == ["marker0"]
+        assert [x.name for x in m.test_markers] == ["test_marker0"]
         with pytest.raises(TypeError, match="namespace must be one of"):
             type("Bad", (Item,), {"collection": "bad", "namespace": "other"})
     finally:
         COLLECTIONS.pop("test_markers")
+
+
+def test_default_names_of_every_kind_are_its_label_with_a_count():
+    """The class statement gives label and prefix; a rigid body is named like any body and a
+    follower force like any force (they share the list and its count)."""
+    from morphlab.model.bodies import Beam, RigidBody
+    from morphlab.model.forces import LineLoad, RotationalSpring, Spring
+    from morphlab.model.joints import Drive, Fix, Gear, Prismatic, Revolute, Weld
+    from morphlab.model.loads import Force, Torque
+    from morphlab.model.pressure import FollowerForce, Pressure
+
+    prefixes = {cls.__name__: cls.prefix for cls in (
+        Beam, RigidBody, LineLoad, RotationalSpring, Spring, Drive, Fix, Gear, Prismatic,
+        Revolute, Weld, Force, Torque, FollowerForce, Pressure)}
+    assert prefixes == {
+        "Beam": "beam", "RigidBody": "body", "LineLoad": "line_load",
+        "RotationalSpring": "rotational_spring", "Spring": "spring", "Drive": "drive",
+        "Fix": "fix", "Gear": "gear", "Prismatic": "prismatic", "Revolute": "revolute",
+        "Weld": "weld", "Force": "force", "Torque": "torque", "FollowerForce": "force",
+        "Pressure": "pressure"}
+    assert (FollowerForce.collection, FollowerForce.label) == ("forces", "follower force")
+    assert (RotationalSpring.collection, RotationalSpring.namespace) == ("springs", "loads")

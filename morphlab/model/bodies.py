@@ -28,14 +28,10 @@ if TYPE_CHECKING:
     from .model import Model
 
 
-class Body(Item):
+class Body(Item, collection="bodies", namespace="bodies", label="body"):
     """Base of all bodies. ``name`` is unique within a model. A body validates its parameters
     when it is constructed; :meth:`Model.add <morphlab.model.Model.add>` checks its name."""
 
-    collection = "bodies"
-    namespace = "bodies"
-    label = "body"
-    prefix = "body"
     name: str
 
     def __repr__(self) -> str:
@@ -49,7 +45,7 @@ class Ground(Body):
         self.name = "ground"
 
 
-class RigidBody(Body):
+class RigidBody(Body, label="rigid body", prefix="body"):
     """A rigid body with its reference point at the centre of mass.
 
     Parameters
@@ -67,8 +63,6 @@ class RigidBody(Body):
         velocity-level constraints).
     """
 
-    label = "rigid body"
-
     def __init__(self, mass, inertia, position, angle=0.0, *, velocity=(0.0, 0.0),
                  angular_velocity=0.0, name):
         self.name = _check_name(name, "body")
@@ -83,7 +77,7 @@ class RigidBody(Body):
         self.angular_velocity = _upcast(angular_velocity)
 
 
-class Beam(Body):
+class Beam(Body, label="beam"):
     """A flexible body of planar Euler–Bernoulli elements along a polyline of nodes (FFRF).
 
     Parameters
@@ -118,9 +112,6 @@ class Beam(Body):
     -----
     Accuracy against cost of the frame choices: ``docs/frames.md``.
     """
-
-    label = "beam"
-    prefix = "beam"
 
     def __init__(self, nodes, *, E, rho, thickness=None, width=None, area=None,
                  second_moment=None, fibre=None, damping=0.0, frames=None, reference=None,

@@ -30,10 +30,8 @@ def _nonnegative(value, what, owner):
     return _upcast(value)
 
 
-class _SpringDamper(Load):
+class _SpringDamper(Load, collection="springs"):
     """Stiffness and damping (>= 0) and a preload of any sign."""
-
-    collection = "springs"
 
     def _check_parameters(self) -> None:
         _numeric(self.preload, "preload", self.owner)
@@ -43,7 +41,7 @@ class _SpringDamper(Load):
 
 
 @dataclass(eq=False)
-class Spring(_SpringDamper):
+class Spring(_SpringDamper, label="spring"):
     """Translational spring-damper between the material point of ``a`` at ``at_a`` and that
     of ``b`` at ``at_b`` (global points of the initial configuration). Its tension is
     ``f = stiffness (l - rest_length) + damping dl/dt + preload`` along the line between the
@@ -59,9 +57,6 @@ class Spring(_SpringDamper):
     damping: object = 0.0
     rest_length: object = None
     preload: object = 0.0
-
-    label = "spring"
-    prefix = "spring"
 
     def check(self, model: Model) -> None:
         owner = self.owner
@@ -82,7 +77,7 @@ class Spring(_SpringDamper):
 
 
 @dataclass(eq=False)
-class RotationalSpring(_SpringDamper):
+class RotationalSpring(_SpringDamper, label="rotational spring"):
     """Torsion spring-damper on the relative rotation ``psi`` of ``a`` against ``b`` (each the
     body's angle, plus the nodal rotation of the beam node at ``at_a`` / ``at_b``). Its moment is
     ``M = stiffness (psi - rest_angle) + damping dpsi/dt + preload``, with ``psi`` counted from
@@ -102,9 +97,6 @@ class RotationalSpring(_SpringDamper):
     rest_angle: object = 0.0
     preload: object = 0.0
     joint: Revolute | str | None = None
-
-    label = "rotational spring"
-    prefix = "rotational_spring"
 
     def _across(self, model: Model) -> None:
         """Sides and points from :attr:`joint`, a revolute joint of ``model``."""
@@ -154,7 +146,7 @@ class RotationalSpring(_SpringDamper):
 
 
 @dataclass(eq=False)
-class LineLoad(_BeamLoad):
+class LineLoad(_BeamLoad, collection="line_loads", label="line load"):
     """A distributed load ``q * profile(t)`` [force per length of the undeformed beam] of fixed
     global direction on the elements ``elements`` of ``beam`` (element indices, 0 to
     ``n_elements - 1``; None: all; :meth:`check` makes them a sorted int64 array)."""
@@ -162,10 +154,6 @@ class LineLoad(_BeamLoad):
     q: np.ndarray
     profile: Profile = field(default_factory=Constant)
     elements: np.ndarray | None = None
-
-    collection = "line_loads"
-    label = "line load"
-    prefix = "line_load"
 
     def check(self, model: Model) -> None:
         self._check_span(model)

@@ -31,7 +31,8 @@ NAMESPACES: dict[str, tuple[str, str]] = {
 class Item:
     """Base of bodies, joints, loads and force elements.
 
-    Class attributes of each kind:
+    Class attributes of each kind, given as keywords of the class statement (or assigned in
+    its body):
 
     collection : str
         The list of the model the item is added to (``"bodies"``, ``"joints"``, ``"forces"``,
@@ -52,8 +53,18 @@ class Item:
     name: str | None
     _model: Model | None = None  # set by Model.add: an item belongs to one model
 
-    def __init_subclass__(cls, **kwargs):
+    def __init_subclass__(cls, *, collection: str | None = None, namespace: str | None = None,
+                          label: str | None = None, prefix: str | None = None, **kwargs):
+        """Take the kind's attributes from the class statement, e.g.
+        ``class Torque(Load, collection="torques", label="torque")``; the prefix defaults to
+        the label with underscores for spaces. Attributes not given are inherited."""
         super().__init_subclass__(**kwargs)
+        for key, value in (("collection", collection), ("namespace", namespace),
+                           ("label", label)):
+            if value is not None:
+                setattr(cls, key, value)
+        if prefix is not None or label is not None:
+            cls.prefix = prefix if prefix is not None else label.replace(" ", "_")
         if cls.collection:
             if cls.namespace not in NAMESPACES:
                 raise TypeError(f"{cls.__name__}: namespace must be one of "

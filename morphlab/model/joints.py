@@ -25,15 +25,10 @@ if TYPE_CHECKING:
 
 
 @dataclass(eq=False)
-class Joint(Item):
+class Joint(Item, collection="joints", namespace="joints", label="joint"):
     """Base of joints; ``name`` is unique among the joints of a model."""
 
     name: str | None
-
-    collection = "joints"
-    namespace = "joints"
-    label = "joint"
-    prefix = "joint"
 
 
 @dataclass(eq=False)
@@ -57,32 +52,23 @@ class _PointJoint(Joint):
 
 
 @dataclass(eq=False)
-class Revolute(_PointJoint):
+class Revolute(_PointJoint, label="revolute"):
     """Pin joint: the material points of ``a`` and ``b`` at ``at`` coincide (2 rows)."""
 
-    label = "revolute"
-    prefix = "revolute"
-
 
 @dataclass(eq=False)
-class Weld(_PointJoint):
+class Weld(_PointJoint, label="weld"):
     """Rigid joint: revolute plus the relative rotation at ``at`` kept at its initial value."""
 
-    label = "weld"
-    prefix = "weld"
-
 
 @dataclass(eq=False)
-class Prismatic(_PointJoint):
+class Prismatic(_PointJoint, label="prismatic"):
     """Slider: the material point of ``b`` at ``at`` moves along the line through ``at`` with
     direction ``axis`` fixed in ``a`` (in the frame of the beam node at ``at`` when ``a`` is a
     beam), and the relative rotation of ``a`` and ``b`` is held at its initial value (2 rows).
     ``axis``: any nonzero length, global, initial configuration."""
 
     axis: np.ndarray
-
-    label = "prismatic"
-    prefix = "prismatic"
 
     def check(self, model: Model) -> None:
         super().check(model)
@@ -94,16 +80,13 @@ class Prismatic(_PointJoint):
 
 
 @dataclass(eq=False)
-class Fix(Joint):
+class Fix(Joint, label="fix"):
     """Ground constraint on a subset ``dofs`` of ``"x"``, ``"y"`` and ``"r"`` (rotation) of
     the point ``at`` of ``body`` (held at their initial values; stored in the order x, y, r)."""
 
     body: Body | str
     at: np.ndarray
     dofs: str = "xyr"
-
-    label = "fix"
-    prefix = "fix"
 
     def check(self, model: Model) -> None:
         self.body = body_of(model, self.body, self.owner)
@@ -119,7 +102,7 @@ class Fix(Joint):
 
 
 @dataclass(eq=False)
-class Drive(Joint):
+class Drive(Joint, label="drive"):
     """Prescribed rotation: ``angle(t) = angle_0 + f(t)`` of the body (or of a beam node at
     ``at``; default the beam's reference node, else node 0), with ``f = profile``, or ``f`` the
     exact integral of ``speed`` (:meth:`Profile.integral`; ``profile`` is then set to it).
@@ -130,9 +113,6 @@ class Drive(Joint):
     profile: Profile | None = None
     at: np.ndarray | None = None
     speed: Profile | None = None
-
-    label = "drive"
-    prefix = "drive"
 
     def check(self, model: Model) -> None:
         owner = self.owner
@@ -163,7 +143,7 @@ class Drive(Joint):
 
 
 @dataclass(eq=False)
-class Gear(Joint):
+class Gear(Joint, label="gear"):
     """Gear pair or coupler between two rotations (1 angle row, ``docs/theory.md`` §4.2):
 
     ``(theta_a + phi_a) - ratio (theta_b + phi_b) = c``,
@@ -183,9 +163,6 @@ class Gear(Joint):
     ratio: object
     at_a: np.ndarray | None = None
     at_b: np.ndarray | None = None
-
-    label = "gear"
-    prefix = "gear"
 
     @property
     def at(self) -> np.ndarray:

@@ -19,12 +19,11 @@ if TYPE_CHECKING:
     from .model import Model
 
 
-class Load(Item):
+class Load(Item, namespace="loads"):
     """Base of loads and force elements: they share one set of names (the ``"loads"``
-    namespace). A new kind of load derives from it and sets ``collection``, ``label`` and
-    ``prefix`` and its :meth:`check`."""
-
-    namespace = "loads"
+    namespace). A new kind of load derives from it, names its list and label in the class
+    statement (``class Torque(Load, collection="torques", label="torque")``) and writes its
+    :meth:`check`."""
 
     def _loaded_body(self, model: Model, body) -> Body:
         """``body`` (or its name) as a body of ``model`` other than the ground."""
@@ -62,7 +61,7 @@ class _BeamLoad(Load):
 
 
 @dataclass(eq=False)
-class Force(Load):
+class Force(Load, collection="forces", label="force"):
     """A force of fixed global direction at a material point: ``F(t) = force * profile(t)``
     [N] (``at`` a node when ``body`` is a beam; ``profile`` a :class:`Profile`, a number or
     a callable ``f(t)``)."""
@@ -73,10 +72,6 @@ class Force(Load):
     profile: Profile = field(default_factory=Constant)
     name: str | None = None
 
-    collection = "forces"
-    label = "force"
-    prefix = "force"
-
     def check(self, model: Model) -> None:
         self.body = self._loaded_body(model, self.body)
         self.at = material_point(self.body, self.at, self.owner)
@@ -85,7 +80,7 @@ class Force(Load):
 
 
 @dataclass(eq=False)
-class Torque(Load):
+class Torque(Load, collection="torques", label="torque"):
     """A torque ``T(t) = magnitude * profile(t)`` [N·mm] on a body (and on the nodal rotation
     of the beam node at ``at``, when given)."""
 
@@ -94,10 +89,6 @@ class Torque(Load):
     profile: Profile = field(default_factory=Constant)
     at: np.ndarray | None = None
     name: str | None = None
-
-    collection = "torques"
-    label = "torque"
-    prefix = "torque"
 
     def check(self, model: Model) -> None:
         self.body = self._loaded_body(model, self.body)

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 
 @dataclass(eq=False)
-class Pressure(_BeamLoad):
+class Pressure(_BeamLoad, collection="pressures", label="pressure"):
     """A pressure ``p(s) * profile(t)`` [force/area] normal to the deformed centre line of
     ``beam`` over ``elements``, on the beam's out-of-plane ``width`` [length]. Positive ``p``
     pushes along the left normal of the direction from the first node to the last (on a ring
@@ -36,10 +36,6 @@ class Pressure(_BeamLoad):
     width: object = None
     profile: Profile = field(default_factory=Constant)
     elements: np.ndarray | None = None
-
-    collection = "pressures"
-    label = "pressure"
-    prefix = "pressure"
 
     def check(self, model: Model) -> None:
         owner = self.owner
@@ -58,12 +54,10 @@ class Pressure(_BeamLoad):
 
 
 @dataclass(eq=False)
-class FollowerForce(Force):
+class FollowerForce(Force, label="follower force", prefix="force"):
     """A point force that turns with the material point: ``F(t) = A(psi - psi_0) force
     profile(t)``, ``force`` in the axes of the initial configuration and ``psi`` the point's
     rotation (the body angle, plus the nodal rotation at a beam node)."""
-
-    label = "follower force"
 
 
 def _nodal(p, beam: Beam, owner: str) -> np.ndarray:
