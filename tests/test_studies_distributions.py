@@ -17,17 +17,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from morphlab.studies import (
-    JointDistribution,
-    StudyError,
-    halton,
-    latin_hypercube,
-    monte_carlo,
-    normal,
-    sample,
-    sobol,
-    uniform,
-)
+from morphlab import studies
+from morphlab.studies import JointDistribution, StudyError, normal, uniform
 
 MARGINALS = {"t": stats.norm(2.0, 0.05), "E": stats.lognorm(0.1, scale=70000.0),
              "M": stats.gumbel_r(1.0e4, 300.0), "x": stats.uniform(101.0, 2.0)}
@@ -87,7 +78,7 @@ def test_transform_round_trip_and_jacobian():
 def test_marginals_pass_a_kolmogorov_smirnov_test(method):
     J = JointDistribution(MARGINALS, rank_correlation=RANK)
     n = 1024
-    x = sample(J, n, method, seed=5)
+    x = studies.sample(J, n, method, seed=5)
     for name, dist in zip(J.names, J.marginals):
         ks = stats.kstest(x[name], dist.cdf)
         # a fixed seed: the p-value of a correct mapping is uniform on (0, 1); 0.01 fails a
@@ -97,7 +88,7 @@ def test_marginals_pass_a_kolmogorov_smirnov_test(method):
             assert ks.statistic <= 1.0 / n, (name, ks.statistic)
 
 
-@pytest.mark.parametrize("sampler", [latin_hypercube, sobol])
+@pytest.mark.parametrize("sampler", [studies.latin_hypercube, studies.sobol])
 def test_stratified_marginals_of_independent_variables(sampler):
     J = JointDistribution(MARGINALS)
     n = 256
@@ -112,9 +103,9 @@ def test_correlated_latin_hypercube_reproduces_the_rank_correlation():
     n = 1000
     worst_ic, worst_mc = [], []
     for seed in range(5):
-        x = np.stack(list(latin_hypercube(J, n, seed=seed).values()), axis=1)
+        x = np.stack(list(studies.latin_hypercube(J, n, seed=seed).values()), axis=1)
         worst_ic.append(np.max(np.abs(stats.spearmanr(x).statistic - RANK)))
-        y = np.stack(list(monte_carlo(J, n, seed=seed).values()), axis=1)
+        y = np.stack(list(studies.monte_carlo(J, n, seed=seed).values()), axis=1)
         worst_mc.append(np.max(np.abs(stats.spearmanr(y).statistic - RANK)))
     # random pairing (Monte Carlo through the copula): a sample Spearman coefficient has a
     # standard error of about (1 - ρ²) / sqrt(n) ~ 0.03; its largest of 6 entries must stay
@@ -126,20 +117,20 @@ def test_correlated_latin_hypercube_reproduces_the_rank_correlation():
 
 def test_iman_conover_pairing_or_copula_on_request():
     J = JointDistribution(MARGINALS, rank_correlation=RANK)
-    a = latin_hypercube(J, 200, seed=1, pairing="copula")
-    b = latin_hypercube(J, 200, seed=1)
+    a = studies.latin_hypercube(J, 200, seed=1, pairing="copula")
+    b = studies.latin_hypercube(J, 200, seed=1)
     assert not np.array_equal(a["E"], b["E"])
     # the copula mixes the strata of the correlated variables; t is the first (L's row 1)
     assert stats.kstest(a["t"], J.marginals[0].cdf).statistic <= 1.0 / 200
 
 
 def test_bounds_mixed_with_distributions():
-    x = latin_hypercube({"a": (0.0, 2.0), "b": stats.norm(1.0, 0.1)}, 64, seed=0)
+    x = studies.latin_hypercube({"a": (0.0, 2.0), "b": stats.norm(1.0, 0.1)}, 64, seed=0)
     assert np.all((x["a"] >= 0.0) & (x["a"] <= 2.0))
     assert stats.kstest(x["b"], stats.norm(1.0, 0.1).cdf).statistic <= 1.0 / 64
     # plain bounds keep the historical mapping low + unit (high - low), bitwise
-    np.testing.assert_array_equal(halton({"a": (0.0, 2.0)}, 8, seed=1)["a"],
-                                  0.0 + halton({"a": (0.0, 1.0)}, 8, seed=1)["a"] * 2.0)
+    np.testing.assert_array_equal(studies.halton({"a": (0.0, 2.0)}, 8, seed=1)["a"],
+                                  0.0 + studies.halton({"a": (0.0, 1.0)}, 8, seed=1)["a"] * 2.0)
 
 
 @pytest.mark.parametrize("call, match", [
@@ -157,10 +148,10 @@ def test_bounds_mixed_with_distributions():
     (lambda: JointDistribution({"a": normal(0, 1), "b": normal(0, 1), "c": normal(0, 1)},
                                copula_correlation=[[1, .9, .9], [.9, 1, -.9], [.9, -.9, 1]]),
      "not positive definite"),
-    (lambda: sobol({"a": normal(0, 1)}, 8, scramble=False), "scramble=True"),
-    (lambda: latin_hypercube({"a": normal(0, 1)}, 8, pairing="x"), "pairing"),
-    (lambda: sample({"a": normal(0, 1)}, 8, "grid"), "method must be"),
-    (lambda: latin_hypercube(JointDistribution(MARGINALS, rank_correlation=RANK), 5),
+    (lambda: studies.sobol({"a": normal(0, 1)}, 8, scramble=False), "scramble=True"),
+    (lambda: studies.latin_hypercube({"a": normal(0, 1)}, 8, pairing="x"), "pairing"),
+    (lambda: studies.sample({"a": normal(0, 1)}, 8, "grid"), "method must be"),
+    (lambda: studies.latin_hypercube(JointDistribution(MARGINALS, rank_correlation=RANK), 5),
      "more samples"),
 ])
 def test_bad_input_is_a_typed_error(call, match):
