@@ -77,6 +77,7 @@ class AeroResult:
     Attributes
     ----------
     condition : FlightCondition
+        The freestream analysed: speed, air, reference chord, incidence or target lift.
     alpha : float
         Angle of attack [deg] in the wing frame (given, or found for the target CL).
     cl, cd, cm : float

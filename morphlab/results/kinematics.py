@@ -42,7 +42,9 @@ class BeamKinematics:
     Attributes
     ----------
     beam : str
+        The beam's name.
     frames : int
+        Number of floating frames of the beam (element groups, each with its own frame).
     rotation : (frames,)
         Largest RMS element rotation relative to its frame, per frame [rad].
     stretch : (frames,)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -134,15 +134,15 @@ class SampleResult:
     std: dict
     mean_ci: dict
     std_ci: dict
-    allowables: dict = field(default_factory=dict)
-    p_exceed: dict = field(default_factory=dict)
-    p_sides: dict = field(default_factory=dict)
-    p_ci: dict = field(default_factory=dict)
-    n: int = 0
-    failed: int = 0
-    confidence: float = 0.95
-    method: str = "monte-carlo"
-    table: object = None
+    allowables: dict
+    p_exceed: dict
+    p_sides: dict
+    p_ci: dict
+    n: int
+    failed: int
+    confidence: float
+    method: str
+    table: object
 
     def table_text(self, digits: int = 4) -> str:
         """Mean and std with their intervals, exceedance probability with its interval."""
@@ -170,20 +170,21 @@ def sample_result(table, variables, allowables: Mapping | None, confidence: floa
     ok = np.asarray(table.ok)
     responses = list(table.values)
     allowables = check_allowables(allowables, responses)
-    out = SampleResult(list(variables), responses, {}, {}, {}, {}, allowables=allowables,
-                       n=int(ok.sum()), failed=int((~ok).sum()), confidence=confidence,
-                       method=method, table=table)
+    moments = {name: {} for name in ("mean", "std", "mean_ci", "std_ci")}
     for k in responses:
-        x = table.values[k][ok]
-        stats = mean_std(x, confidence, seed)
-        for name in ("mean", "std", "mean_ci", "std_ci"):
-            getattr(out, name)[k] = stats[name]
+        stats = mean_std(table.values[k][ok], confidence, seed)
+        for name, per_response in moments.items():
+            per_response[k] = stats[name]
+    p_sides, p_exceed, p_ci = {}, {}, {}
     for k, (lo, hi) in allowables.items():
         x = table.values[k][ok]
         below = int(np.sum(x < lo)) if lo is not None else 0
         above = int(np.sum(x > hi)) if hi is not None else 0
         n = max(x.size, 1)
-        out.p_sides[k] = (below / n, above / n)
-        out.p_exceed[k] = (below + above) / n
-        out.p_ci[k] = binomial_interval(below + above, x.size, confidence)
-    return out
+        p_sides[k] = (below / n, above / n)
+        p_exceed[k] = (below + above) / n
+        p_ci[k] = binomial_interval(below + above, x.size, confidence)
+    return SampleResult(list(variables), responses, **moments, allowables=allowables,
+                        p_exceed=p_exceed, p_sides=p_sides, p_ci=p_ci, n=int(ok.sum()),
+                        failed=int((~ok).sum()), confidence=confidence, method=method,
+                        table=table)
