@@ -59,10 +59,9 @@ class Sweep(NamedTuple):
     """The adjoint state and buffers of a backward sweep: ``Bq, Bv, Ba, Bg`` (n_dof, m),
     ``Bl`` (n_con, m) (module docstring); the responses' terms ``Hq, Hv, Ha`` (n_t, n_dof,
     m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``; the
-    pseudo-load data ``ps`` with the residual
-    rows each variable touches ``RO`` (n_x + 1,), ``RI``; ``reuse``, ``refine`` as for the
-    direct method; the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``,
-    ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column`` (:class:`~morphlab.kernels.
+    pseudo-load data ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,),
+    ``RI``; the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``, ``r``,
+    ``work`` (n, m), ``gb`` (n_dof, m), ``column`` (:class:`~morphlab.kernels.
     pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
     Bq: np.ndarray
@@ -78,8 +77,6 @@ class Sweep(NamedTuple):
     ps: tuple
     RO: np.ndarray
     RI: np.ndarray
-    reuse: bool
-    refine: int
     grad: np.ndarray
     zb: np.ndarray
     mu: np.ndarray
@@ -263,10 +260,12 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
 
 
 @kernel(nogil=True)
-def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo):
+def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine):
     """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
     factors, fills and states recorded in ``K`` (:class:`Keep`); ``F``: a factor of the run,
-    for the patterns. Returns True when it reached the initial solve."""
+    for the patterns; ``refine``: None for the reuse variant (then the exact variant's code is
+    not compiled), else the exact variant's number of refinement sweeps. Returns True when it
+    reached the initial solve."""
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):
@@ -275,13 +274,13 @@ def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo):
         new, old = kept_state(K, j + 1), kept_state(K, j)
         Fk = kept_factor(K, F, j)
         solve_factored_transposed(a.mu, a.work, Fk)
-        if a.reuse:
+        if refine is None:
             Dq, Dv = K.D[j, 0], K.D[j, 1]
         else:
             exact_matrices(a, M, T, sc, new, k)
             Dq, Dv = a.mats[1], a.mats[2]
-            if a.refine > 0:
-                for _ in range(a.refine):
+            if refine > 0:
+                for _ in range(refine):
                     refinement_residual(a, csc)
                     solve_factored_transposed(a.r, a.work, Fk)
                     for i in range(n):

@@ -38,7 +38,7 @@ from .pseudo import explicit
 class Direct(NamedTuple):
     """The work of a run's direct sensitivities: histories ``DQ, DV, DA, DG, DL``
     (module docstring), the pseudo-load data ``ps`` (:class:`~morphlab.kernels.pseudo.
-    Pseudo`), ``reuse`` and ``refine`` (module docstring), buffers ``rhs``, ``x``, ``r``,
+    Pseudo`), buffers ``rhs``, ``x``, ``r``,
     ``work`` (n, n_x), ``column`` (:class:`~morphlab.kernels.pseudo.Column`), ``mats``
     (6, nnz) (split matrices at the converged and the old state), ``refined`` (n_t,): the
     relative residual of each refined solve, ``csc`` the step matrix's pattern
@@ -50,8 +50,6 @@ class Direct(NamedTuple):
     DG: np.ndarray
     DL: np.ndarray
     ps: tuple
-    reuse: bool
-    refine: int
     rhs: np.ndarray
     x: np.ndarray
     r: np.ndarray
@@ -147,14 +145,15 @@ def store(d, sc, x, k):
 
 
 @kernel
-def prepare(d, M, T, sc, Dq, Dv, new, old, k):
+def prepare(d, M, T, sc, Dq, Dv, new, old, k, refine):
     """The right-hand sides of step ``k`` (from the state ``old`` to ``new``) into ``d.rhs``
     and ``d.x`` (which the caller then solves in place), with the split matrices of the
     variant (module docstring) in ``d.mats``: ``Dq``, ``Dv`` (nnz,) those of the step's last
-    Newton fill (the reuse variant's)."""
+    Newton fill (the reuse variant's). ``refine``: None for the reuse variant (then the exact
+    variant's code is not compiled), else the exact variant's number of refinement sweeps."""
     C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     D = d.mats
-    if d.reuse:
+    if refine is None:
         for p in range(D.shape[1]):
             D[1, p] = Dq[p]
             D[2, p] = Dv[p]
@@ -178,25 +177,27 @@ def refinement_residual(d):
 
 
 @kernel(nogil=True)
-def chunk(d, M, T, sc, F, K, k0, k1):
+def chunk(d, M, T, sc, F, K, k0, k1, refine):
     """The sensitivities of the recorded steps ``k0 .. k1 - 1`` (``K``:
     :class:`~morphlab.kernels.adjoint.Keep`; ``F``: a factor of the run, for the patterns):
     right-hand sides, one solve with the step's factors for every variable, refinement (exact
-    variant) and the update, step by step (module docstring)."""
+    variant) and the update, step by step (module docstring). ``refine`` as for
+    :func:`prepare`."""
     x = d.x
     for k in range(k0, k1):
         j = k - K.k0[0]
         new, old = kept_state(K, j + 1), kept_state(K, j)
-        prepare(d, M, T, sc, K.D[j, 0], K.D[j, 1], new, old, k)
+        prepare(d, M, T, sc, K.D[j, 0], K.D[j, 1], new, old, k, refine)
         Fk = kept_factor(K, F, j)
         solve_factored(x, d.work, Fk)
-        if not d.reuse and d.refine > 0:
-            for _ in range(d.refine):
-                refinement_residual(d)
-                solve_factored(d.r, d.work, Fk)
-                for r in range(x.shape[0]):
-                    for i in range(x.shape[1]):
-                        x[r, i] += d.r[r, i]
-            rr, bb = refinement_residual(d)
-            d.refined[k] = rr / max(bb, 1e-300)
+        if refine is not None:
+            if refine > 0:
+                for _ in range(refine):
+                    refinement_residual(d)
+                    solve_factored(d.r, d.work, Fk)
+                    for r in range(x.shape[0]):
+                        for i in range(x.shape[1]):
+                            x[r, i] += d.r[r, i]
+                rr, bb = refinement_residual(d)
+                d.refined[k] = rr / max(bb, 1e-300)
         store(d, sc, x, k)

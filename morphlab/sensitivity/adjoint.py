@@ -222,10 +222,11 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
                    np.zeros((n_dof, m)), np.zeros((n_con, m)),
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, reuse, refine, np.zeros((n_x, m)), np.zeros((n, m)),
+                   ps, RO, RI, np.zeros((n_x, m)), np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
                    Column.zeros(n, sys0.count("flex"), ps.DN.dtype), np.zeros((6, sys0.nnz)),
                    np.full(settings.n_steps + 1, np.nan))
+    exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)
     stp = hook.stepper
     sc = stp.scheme_of()
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
@@ -236,7 +237,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     while k >= 0:
         if k in hook.python:
             a = _with_terms(a, vjps, sys0, k, k)
-            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k)
+            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact)
             k -= 1
             continue
         lo = k
@@ -247,7 +248,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
             a = _with_terms(a, vjps, sys0, lo, k)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo)
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact)
         else:
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
@@ -256,7 +257,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
                     break
                 k0 = max(lo, int(K.k0[0]))
                 a = _with_terms(a, vjps, sys0, k0, k)
-                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0)
+                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact)
                 k = k0 - 1
         k = lo - 1
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
@@ -276,19 +277,19 @@ def _with_terms(a, vjps, sys0, lo: int, hi: int):
     return a._replace(Hq=H[0], Hv=H[1], Ha=H[2], Hl=H[3], h0=np.array([lo], dtype=np.int64))
 
 
-def _python_step(a, step: _PythonStep, stp, sc, k: int) -> None:
+def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None) -> None:
     """Step ``k`` of the sweep with a factor solved from Python (the same kernels around
-    the solves as the compiled sweep)."""
+    the solves as the compiled sweep; ``refine`` as for it)."""
     kadj.begin(a, sc, k)
     lu = step.factor
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
-    if a.reuse:
+    if refine is None:
         Dq, Dv = step.Dq, step.Dv
     else:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
         Dq, Dv = a.mats[1], a.mats[2]
-        if a.refine > 0:
-            for _ in range(a.refine):
+        if refine > 0:
+            for _ in range(refine):
                 kadj.refinement_residual(a, stp.newton.csc)
                 a.mu[:] += np.asarray(lu.solve_transposed(a.r), dtype=float)
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)

@@ -55,6 +55,7 @@ class DirectHook(StepHook):
                  reuse: bool = True, refine: int = 1):
         self.system, self.ps = system, ps
         self.reuse, self.refine = reuse, refine
+        self.exact = None if reuse else refine  # the kernels' ``refine`` (None: reuse)
         self.rows = 3 if reuse else 1
         n_x = dq0.shape[1]
         n, n_dof, n_con = system.n, system.n_dof, system.n_con
@@ -67,7 +68,7 @@ class DirectHook(StepHook):
         self.full["q"][:, 0], self.full["v"][:, 0] = dq0.T, dv0.T
         self.kept = kept
         self.d = Direct(self.full["q"], self.full["v"], self.full["a"],
-                        np.zeros((n_x, 2, n_dof)), self.full["lam"], ps, reuse, refine,
+                        np.zeros((n_x, 2, n_dof)), self.full["lam"], ps,
                         np.zeros((n, n_x)), np.zeros((n, n_x)), np.zeros((n, n_x)),
                         np.zeros((n, n_x)), Column.zeros(n, system.count("flex"), ps.DN.dtype),
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
@@ -94,7 +95,7 @@ class DirectHook(StepHook):
             Dq, Dv = converged_blocks(stp, sc, new)
         else:
             Dq, Dv = (data[1], data[2]) if self.reuse else (data[0], data[0])
-        prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k)
+        prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k, self.exact)
         lu = out.factor
         x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
         if not self.reuse and self.refine > 0:
@@ -121,7 +122,7 @@ class DirectHook(StepHook):
         t0 = _time.perf_counter()
         stp = self.stepper
         chunk(self.d, stp.M, stp.T, self.sc, stp.newton.factorization.loop_arrays(),
-              self.record, k0, k1)
+              self.record, k0, k1, self.exact)
         self.seconds += _time.perf_counter() - t0
 
 
