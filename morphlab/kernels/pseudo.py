@@ -74,19 +74,25 @@ class Pseudo(NamedTuple):
 class Column(NamedTuple):
     """One variable's explicit part and its scratch: ``R`` (n,) float64, the column
     :func:`explicit` adds to; ``RN``, ``R0`` (n,): scratch residuals of the perturbed path
-    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls."""
+    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls; ``XN``: the
+    state in ``DN``'s dtype (:class:`~morphlab.kernels.types.Level`), the perturbed path's
+    copy of the state it evaluates."""
 
     R: np.ndarray
     RN: np.ndarray
     R0: np.ndarray
     mask: np.ndarray
+    XN: tuple
 
     @classmethod
-    def zeros(cls, n: int, n_flex: int, dtype) -> "Column":
-        """A zero column for ``n`` residual rows, ``n_flex`` flexible coordinates and the
-        perturbed path's ``dtype``."""
+    def zeros(cls, n_dof: int, n_con: int, n_flex: int, dtype) -> "Column":
+        """A zero column for ``n_dof + n_con`` residual rows, ``n_flex`` flexible
+        coordinates and the perturbed path's ``dtype``."""
+        n = n_dof + n_con
+        XN = Level(*(np.zeros(n_dof, dtype=dtype) for _ in range(3)),
+                   np.zeros(n_con, dtype=dtype))
         return cls(np.zeros(n), np.zeros(n, dtype=dtype), np.zeros(n),
-                   np.zeros(n_flex, dtype=np.bool_))
+                   np.zeros(n_flex, dtype=np.bool_), XN)
 
 
 @inner
@@ -115,8 +121,13 @@ def explicit(ps, M, T, i, x, w, k, c):
         P = Parts(ps.OFFN[i], ps.IDX, mask)
         for j in range(RN.shape[0]):
             RN[j] = 0.0
-        xn = Level(x.q.astype(ps.DN.dtype), x.v.astype(ps.DN.dtype), x.a.astype(ps.DN.dtype),
-                   x.lam.astype(ps.DN.dtype))
+        xn = c.XN
+        for j in range(n_dof):
+            xn.q[j] = x.q[j]
+            xn.v[j] = x.v[j]
+            xn.a[j] = x.a[j]
+        for j in range(x.lam.shape[0]):
+            xn.lam[j] = x.lam[j]
         set_positions(ps.DN, pos, ps.VN[a:b])
         residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
         set_positions(ps.DN, pos, ps.D0[a:b])

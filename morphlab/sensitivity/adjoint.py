@@ -224,7 +224,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
                    ps, RO, RI, np.zeros((n_x, m)), np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
-                   Column.zeros(n, sys0.count("flex"), ps.DN.dtype), np.zeros((6, sys0.nnz)),
+                   Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
+                   np.zeros((6, sys0.nnz)),
                    np.full(settings.n_steps + 1, np.nan))
     exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)
     stp = hook.stepper
@@ -306,7 +307,7 @@ def _touched(sys0: System, ps) -> tuple:
     from ..kernels.types import Weights
 
     rng = np.random.default_rng(12345)
-    n, n_dof, n_con = sys0.n, sys0.n_dof, sys0.n_con
+    n_dof, n_con = sys0.n_dof, sys0.n_con
     x = Level(*(rng.standard_normal(k) + 1.0 for k in (n_dof, n_dof, n_dof, n_con)))
     w = Weights(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     T = time_table(sys0, np.zeros(1))
@@ -324,7 +325,7 @@ def _touched(sys0: System, ps) -> tuple:
                              for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
-    c = Column.zeros(n, sys0.count("flex"), ps.DN.dtype)
+    c = Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype)
     rows = []
     for i in range(ps.PO.size - 1):
         c.R[:] = 0.0

@@ -70,7 +70,8 @@ class DirectHook(StepHook):
         self.d = Direct(self.full["q"], self.full["v"], self.full["a"],
                         np.zeros((n_x, 2, n_dof)), self.full["lam"], ps,
                         np.zeros((n, n_x)), np.zeros((n, n_x)), np.zeros((n, n_x)),
-                        np.zeros((n, n_x)), Column.zeros(n, system.count("flex"), ps.DN.dtype),
+                        np.zeros((n, n_x)),
+                        Column.zeros(n_dof, n_con, system.count("flex"), ps.DN.dtype),
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
                         Csc(system.indices, system.indptr))
         self.record = None
