@@ -106,8 +106,8 @@ def _direct(DQ, DV, DA, DG, DLAM):
     """A :class:`~morphlab.kernels.direct.Direct` holding the histories (the rest unused by
     ``store``)."""
     none = np.zeros(0)
-    return Direct(DQ, DV, DA, DG, DLAM, None, True, 0, none.reshape(0, 0), none.reshape(0, 0),
-                  none.reshape(0, 0), none.reshape(0, 0), Column.zeros(0, 0, np.float64),
+    return Direct(DQ, DV, DA, DG, DLAM, None, none.reshape(0, 0), none.reshape(0, 0),
+                  none.reshape(0, 0), none.reshape(0, 0), Column.zeros(0, 0, 0, np.float64),
                   none.reshape(0, 0), none, None)
 
 
