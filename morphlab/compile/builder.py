@@ -48,14 +48,15 @@ def compile_item(item, builder: Builder) -> None:
 
 class Table:
     """The rows of one kind's table (:class:`~morphlab.kernels.schema.Kind`), appended one or
-    many at a time; ``base``, ``profiles``, ``names``: the items' time constants, time
-    profiles and names."""
+    many at a time; ``base``, ``profiles``, ``names``: the items' time constants (a list of
+    chunks of rows), time profiles and names."""
 
     def __init__(self, kind):
         self.kind = kind
         self.columns = {f.name: [] for f in kind.fields if f.role in (DESIGN, TOPOLOGY)}
         self.n = 0
         self.base: list = []
+        self.time_shape = next((f.shape for f in kind.fields if f.role == TIME), ())
         self.profiles: list = []
         self.names: list = []
 
@@ -79,10 +80,13 @@ class Table:
         timed = self.kind.times is not None
         names = [name] * rows if isinstance(name, str) else list(name)
         self.names += names
-        if timed:
+        if timed:  # one chunk of rows per call: each row's constants broadcast to the shape
+            shape = self.time_shape
             b = np.asarray(base if base is not None else 0.0)
-            self.base += [b] if count is None else list(np.broadcast_to(
-                b, (rows,) + b.shape[1:] if b.ndim else (rows,)))
+            stacked = count is not None and b.ndim > 0  # one entry per row
+            row = b.shape[1:] if stacked else b.shape
+            lead = (b.shape[0] if stacked else 1,) + (1,) * (len(shape) - len(row))
+            self.base.append(np.broadcast_to(b.reshape(lead + row), (rows,) + shape))
             if profile is not None:
                 self.profiles += [(first + r, profile) for r in range(rows)]
         self.n += rows
@@ -109,10 +113,9 @@ class Table:
 
     def time_base(self, dtype) -> np.ndarray:
         """The items' time constants, one row per item."""
-        shape = next(f.shape for f in self.kind.fields if f.role == TIME)
         if not self.base:
-            return np.zeros((0,) + shape, dtype=dtype)
-        return np.array([np.broadcast_to(b, shape) for b in self.base], dtype=dtype)
+            return np.zeros((0,) + self.time_shape, dtype=dtype)
+        return np.concatenate(self.base).astype(dtype)
 
 
 class Builder:
