@@ -122,14 +122,35 @@ def change_of(sys0: System, sys_p: System, pert, T0: Times, times: np.ndarray) -
 
     d = deriv(sys_p.design, sys0.design)
     pos = np.flatnonzero(d != 0.0).astype(np.int64)
-    Tp = time_table(sys_p, times)
     time = None
-    if any(a is not None and any(not np.array_equal(x, y) for x, y in zip(a, b))
-           for a, b in zip(Tp, T0)):
-        time = Times(*(None if a is None else type(a)(*(deriv(x, y)[0] for x, y in zip(a, b)))
-                       for a, b in zip(Tp, T0)))
+    if not same_time_inputs(sys0, sys_p):  # else the time values are equal at every time
+        Tp = time_table(sys_p, times)
+        if any(a is not None and any(not np.array_equal(x, y) for x, y in zip(a, b))
+               for a, b in zip(Tp, T0)):
+            time = Times(*(None if a is None else
+                           type(a)(*(deriv(x, y)[0] for x, y in zip(a, b)))
+                           for a, b in zip(Tp, T0)))
     return Change(pos, d[pos], sys_p.design[pos], time, deriv(sys_p.q0, sys0.q0),
                   deriv(sys_p.v0, sys0.v0), sys_p)
+
+
+def same_time_inputs(sys0: System, sys_p: System) -> bool:
+    """Whether ``sys_p`` has the time constants and profiles of ``sys0`` (then its time values
+    equal the nominal's at every time, which need not be evaluated). False where a profile
+    cannot be compared (then the time values are evaluated and compared)."""
+    for name, base in sys0.time_base.items():
+        if not np.array_equal(sys_p.time_base[name], base):
+            return False
+        p0, pp = sys0.time_profiles.get(name, []), sys_p.time_profiles.get(name, [])
+        if len(p0) != len(pp):
+            return False
+        for (i, a), (j, b) in zip(p0, pp):
+            try:
+                if i != j or not (a is b or bool(a == b)):
+                    return False
+            except (TypeError, ValueError):  # e.g. a profile holding arrays
+                return False
+    return True
 
 
 def changes(build: Callable, p0: dict, names: list[str], sys0: System, times: np.ndarray,
