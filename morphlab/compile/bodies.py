@@ -236,7 +236,9 @@ def section_rows(body: Beam, dt, like, starts: dict) -> dict:
     n_el = body.nodes.shape[0] - 1
     before = SimpleNamespace(**like.record[body.name].inputs)
     changed = np.any(_element_section(body, n_el) != _element_section(before, n_el), axis=0)
-    redo = [f for f, spec in enumerate(specs) if changed[spec.first:spec.last].any()]
+    # the frames holding a changed element (frame f holds elements first_f .. first_{f+1} - 1)
+    first = np.array([spec.first for spec in specs])
+    redo = np.unique(np.searchsorted(first, np.flatnonzero(changed), side="right") - 1).tolist()
     bodies, flex, elements = (like.table(k) for k in ("bodies", "flex", "elements"))
     b0, x0, e0 = starts["bodies"], starts["flex"], starts["elements"]
     x1 = int(bodies.flex[b0 + len(specs) - 1, 1])
