@@ -54,8 +54,9 @@ class DirectHook(StepHook):
     def __init__(self, system: System, n_steps: int, ps: Pseudo, dq0, dv0, kept, *,
                  reuse: bool = True, refine: int = 1):
         self.system, self.ps = system, ps
-        self.reuse, self.refine = reuse, refine
-        self.exact = None if reuse else refine  # the kernels' ``refine`` (None: reuse)
+        # the variant: ``refine`` None for the reuse variant (as the kernels take it), else
+        # the exact variant's refinement sweeps
+        self.reuse, self.refine = reuse, None if reuse else refine
         self.rows = 3 if reuse else 1
         n_x = dq0.shape[1]
         n, n_dof, n_con = system.n, system.n_dof, system.n_con
@@ -96,10 +97,10 @@ class DirectHook(StepHook):
             Dq, Dv = converged_blocks(stp, sc, new)
         else:
             Dq, Dv = (data[1], data[2]) if self.reuse else (data[0], data[0])
-        prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k, self.exact)
+        prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k, self.refine)
         lu = out.factor
         x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
-        if not self.reuse and self.refine > 0:
+        if self.refine:  # the exact variant, refined
             for _ in range(self.refine):
                 d.x[:] = x
                 refinement_residual(d)
@@ -123,7 +124,7 @@ class DirectHook(StepHook):
         t0 = _time.perf_counter()
         stp = self.stepper
         chunk(self.d, stp.M, stp.T, self.sc, stp.newton.factorization.loop_arrays(),
-              self.record, k0, k1, self.exact)
+              self.record, k0, k1, self.refine)
         self.seconds += _time.perf_counter() - t0
 
 
