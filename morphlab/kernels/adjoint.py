@@ -30,7 +30,7 @@ from ._jit import inner, kernel
 from .assemble import matrix
 from .csc import residual, subtract_product
 from .newton import Factors, solve_factored_transposed
-from .pseudo import explicit
+from .pseudo import explicit, load
 from .types import Level
 
 
@@ -154,10 +154,13 @@ def _design_share(a, M, T, sc, new, old, k):
     ps, mu, column = a.ps, a.mu, a.column
     col = column.R
     m = mu.shape[1]
+    load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
+    if sc.has_old:
+        load(column.XO, old)
     for i in range(a.grad.shape[0]):
-        explicit(ps, M, T, i, new, sc.w_new, k, column)
+        explicit(ps, M, T, i, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit(ps, M, T, i, old, sc.w_old, k - 1, column)
+            explicit(ps, M, T, i, old, column.XO, sc.w_old, k - 1, column)
         for j in range(a.RO[i], a.RO[i + 1]):
             r = a.RI[j]
             for c in range(m):

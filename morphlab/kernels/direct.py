@@ -32,7 +32,7 @@ from .assemble import matrix
 from .csc import residual, subtract_product
 from .newmark import predict, update
 from .newton import solve_factored
-from .pseudo import explicit
+from .pseudo import explicit, load
 
 
 class Direct(NamedTuple):
@@ -73,12 +73,15 @@ def rhs(d, M, T, sc, D, new, old, k):
     m = k - 1 if k > 0 else 0  # the initial solve's "old" level: the initial state itself
     ps, column = d.ps, d.column  # bound before the loop (adjoint._design_share says why)
     col = column.R
+    load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
+    if sc.has_old:
+        load(column.XO, old)
     for i in range(n_x):
         for r in range(col.shape[0]):
             col[r] = 0.0
-        explicit(ps, M, T, i, new, sc.w_new, k, column)
+        explicit(ps, M, T, i, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit(ps, M, T, i, old, sc.w_old, m, column)
+            explicit(ps, M, T, i, old, column.XO, sc.w_old, m, column)
         for r in range(col.shape[0]):
             d.rhs[r, i] = -col[r]
     # the state part: R_q dq_hat + R_v dv_hat over the predictors of every column

@@ -74,25 +74,30 @@ class Pseudo(NamedTuple):
 class Column(NamedTuple):
     """One variable's explicit part and its scratch: ``R`` (n,) float64, the column
     :func:`explicit` adds to; ``RN``, ``R0`` (n,): scratch residuals of the perturbed path
-    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls; ``XN``: the
-    state in ``DN``'s dtype (:class:`~morphlab.kernels.types.Level`), the perturbed path's
-    copy of the state it evaluates."""
+    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls; ``XN``,
+    ``XO``: the new and the old level's state in ``DN``'s dtype
+    (:class:`~morphlab.kernels.types.Level`), which the perturbed path evaluates, loaded once
+    a step by :func:`load` for all variables."""
 
     R: np.ndarray
     RN: np.ndarray
     R0: np.ndarray
     mask: np.ndarray
     XN: tuple
+    XO: tuple
 
     @classmethod
     def zeros(cls, n_dof: int, n_con: int, n_flex: int, dtype) -> "Column":
         """A zero column for ``n_dof + n_con`` residual rows, ``n_flex`` flexible
         coordinates and the perturbed path's ``dtype``."""
         n = n_dof + n_con
-        XN = Level(*(np.zeros(n_dof, dtype=dtype) for _ in range(3)),
-                   np.zeros(n_con, dtype=dtype))
+
+        def level():
+            return Level(*(np.zeros(n_dof, dtype=dtype) for _ in range(3)),
+                         np.zeros(n_con, dtype=dtype))
+
         return cls(np.zeros(n), np.zeros(n, dtype=dtype), np.zeros(n),
-                   np.zeros(n_flex, dtype=np.bool_), XN)
+                   np.zeros(n_flex, dtype=np.bool_), level(), level())
 
 
 @inner
@@ -101,10 +106,22 @@ def _any(off):
 
 
 @inner
-def explicit(ps, M, T, i, x, w, k, c):
-    """Add ``dR/dp_i`` of one level's residual share (state ``x``, weights ``w``, time index
-    ``k``) to the column ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system and time
-    values (the forward difference subtracts their residual)."""
+def load(xn, x):
+    """The state ``x`` into the level ``xn`` (of the perturbed path's dtype)."""
+    for j in range(x.q.shape[0]):
+        xn.q[j] = x.q[j]
+        xn.v[j] = x.v[j]
+        xn.a[j] = x.a[j]
+    for j in range(x.lam.shape[0]):
+        xn.lam[j] = x.lam[j]
+
+
+@inner
+def explicit(ps, M, T, i, x, xn, w, k, c):
+    """Add ``dR/dp_i`` of one level's residual share (state ``x``, the same in the perturbed
+    path's dtype ``xn`` (:func:`load`), weights ``w``, time index ``k``) to the column
+    ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system and time values (the forward
+    difference subtracts their residual)."""
     n_dof = x.q.shape[0]
     R, RN, R0, mask = c.R, c.RN, c.R0, c.mask
     a, b = ps.PO[i], ps.PO[i + 1]
@@ -121,13 +138,6 @@ def explicit(ps, M, T, i, x, w, k, c):
         P = Parts(ps.OFFN[i], ps.IDX, mask)
         for j in range(RN.shape[0]):
             RN[j] = 0.0
-        xn = c.XN
-        for j in range(n_dof):
-            xn.q[j] = x.q[j]
-            xn.v[j] = x.v[j]
-            xn.a[j] = x.a[j]
-        for j in range(x.lam.shape[0]):
-            xn.lam[j] = x.lam[j]
         set_positions(ps.DN, pos, ps.VN[a:b])
         residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
         set_positions(ps.DN, pos, ps.D0[a:b])
@@ -149,4 +159,5 @@ def explicit(ps, M, T, i, x, w, k, c):
 @kernel
 def explicit_column(ps, M, T, i, x, w, k, c):
     """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
-    explicit(ps, M, T, i, x, w, k, c)
+    load(c.XN, x)
+    explicit(ps, M, T, i, x, c.XN, w, k, c)
