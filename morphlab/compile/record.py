@@ -34,14 +34,17 @@ SECTION = frozenset({"E", "rho", "thickness", "width", "area", "second_moment", 
 
 class Entry(NamedTuple):
     """What one beam contributed: its ``inputs`` (attribute values), the builder's counts
-    ``before`` and ``after`` it (:func:`counts`), its body information and the function that
-    finds its material points."""
+    ``before`` and ``after`` it (:func:`counts`), its body information, the function that
+    finds its material points and the initial velocities of its DOFs as the model gives them
+    (``v0``: before the compile computes them from the drives, which it does again for the
+    other design)."""
 
     inputs: dict
     before: tuple
     after: tuple
     info: object
     locate: Callable
+    v0: list
 
 
 def counts(b) -> tuple:
@@ -79,7 +82,8 @@ def changed_inputs(a: dict, b: dict) -> set | None:
 
 def entry(beam, b, before: tuple) -> Entry:
     """The record of ``beam``, just compiled into ``b`` from the counts ``before``."""
-    return Entry(inputs(beam), before, counts(b), b.bodies[beam.name], b.locate[beam.name])
+    return Entry(inputs(beam), before, counts(b), b.bodies[beam.name], b.locate[beam.name],
+                 b.v0[before[0]:])
 
 
 def replay(beam, b, like, section: Callable | None = None) -> Entry | None:
@@ -101,7 +105,7 @@ def replay(beam, b, like, section: Callable | None = None) -> Entry | None:
     d0, d1 = rec.before[0], rec.after[0]
     b.dof_names += like.dof_names[d0:d1]
     b.q0 += list(like.q0[d0:d1])
-    b.v0 += list(like.v0[d0:d1])
+    b.v0 += rec.v0
     for (name, table), n0, n1 in zip(b.tables.items(), rec.before[1], rec.after[1]):
         if n1 == n0:
             continue
