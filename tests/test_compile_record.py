@@ -49,6 +49,9 @@ def test_a_perturbed_design_compiled_like_the_nominal_is_its_own_compile(nominal
     section = like.record["skin"].info is nominal.record["skin"].info
     assert section, variable
     assert like.record["skin"].inputs["E"] == p["E"]
+    # a design that changes sections alone is a copy of the nominal system (its body table
+    # shared), not a compile
+    assert (like.bodies is nominal.bodies) == (variable in ("t_w", "E")), variable
 
 
 def test_a_thickness_of_a_few_elements_is_a_section_copy_and_exact():
@@ -64,6 +67,7 @@ def test_a_thickness_of_a_few_elements_is_a_section_copy_and_exact():
     p[name] = p[name] + 1e-30j
     like = ml.compile_model(build(p), like=nominal)
     assert like.record["skin"].info is nominal.record["skin"].info
+    assert like.bodies is nominal.bodies  # a copy of the nominal system
     _assert_identical(like, ml.compile_model(build(p)))
     other = [k for k in p0 if k.startswith("t")][-1]
     q = dict(p)
@@ -121,4 +125,5 @@ def test_a_copied_beam_of_a_model_started_by_a_drive_takes_the_velocities_anew(s
     for t in (2.0, 2.0 + step):  # the beam copied as it is; its section computed again
         like = ml.compile_model(build(t), like=nominal)
         assert like.record["coupler"].info is nominal.record["coupler"].info
+        assert like.bodies is not nominal.bodies  # compiled: its velocities computed anew
         _assert_identical(like, ml.compile_model(build(t)))

@@ -9,6 +9,7 @@ this is model-building code, kept in NumPy.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -22,10 +23,10 @@ from . import bodies, forces, joints, loads  # noqa: F401 - they register the co
 from .bodies import section_rows
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
-from .design import flatten
+from .design import flatten, layout, views
 from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
-from .record import counts, entry, replay
+from .record import SECTION, changed_inputs, counts, entry, equal, inputs, replay, same_item
 from .system import System
 
 
@@ -81,6 +82,51 @@ def _same_topology(arrays, n_dof, n_con, like: System) -> bool:
     return True
 
 
+def _section_copy(model: Model, like: System, dt) -> System | None:
+    """``model`` compiled as a copy of ``like`` where it differs from ``like.model`` in the
+    sections of beams alone (:data:`~morphlab.compile.record.SECTION`; the thickness variables
+    of a sensitivity run): ``like``'s design data with the changed beams' rows computed again
+    (:func:`~morphlab.compile.bodies.section_rows`), everything else ``like``'s. None where that
+    does not hold (another item or the gravity changed, a beam's nodes or frames, ``like``
+    complex and ``dt`` real, or initial velocities that the mass of the beams could enter).
+
+    The copy equals a compile from scratch bit for bit (``tests/test_compile_record.py``):
+    a section enters the element data only, the DOFs, rows, pattern, time data and checks
+    (which read the geometry) are ``like``'s."""
+    if not like.record or (like.dtype.kind == "c" and dt.kind != "c") or np.any(like.v0 != 0) \
+            or not equal(model.gravity, like.model.gravity):
+        return None
+    new, old = items_of(model), items_of(like.model)
+    if len(new) != len(old):
+        return None
+    changed = []
+    for a, b in zip(new, old):
+        if isinstance(a, Beam) and type(a) is type(b) and a.name == b.name:
+            rec = like.record.get(a.name)
+            diff = None if rec is None else changed_inputs(rec.inputs, inputs(a))
+            if diff is None or not diff <= SECTION:
+                return None
+            if diff:
+                changed.append((a, rec))
+        elif not same_item(a, b):
+            return None
+    design = like.design.astype(dt)
+    slots = {(s.kind, s.field): s for s in layout(like.arrays)}
+    record = dict(like.record)
+    for beam, rec in changed:
+        starts = dict(zip(KIND_NAMES, rec.before[1]))
+        for table, fields in section_rows(beam, dt, like, starts).items():
+            for name, values in fields.items():
+                s = slots[(table, name)]
+                at = s.start + starts[table] * s.size
+                design[at:at + values.size] = values.ravel()
+        record[beam.name] = rec._replace(inputs=inputs(beam))
+    return dataclasses.replace(
+        like, model=model, dtype=dt, q0=like.q0.astype(dt), v0=like.v0.astype(dt),
+        arrays=views(like.arrays_as(dt), design), design=design,
+        time_base={k: v.astype(dt) for k, v in like.time_base.items()}, record=record)
+
+
 def compile_model(model: Model, dtype=None, *, like: System | None = None,
                   on_built: Callable[[System], None] | None = None) -> System:
     """Compile ``model`` into a :class:`System`.
@@ -114,6 +160,11 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     if not model.bodies:
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
+    copy = None if like is None else _section_copy(model, like, dt)
+    if copy is not None:
+        if on_built is not None:
+            on_built(copy)
+        return copy
     b = Builder(model, dt)
     record = {}
     for item in items_of(model):

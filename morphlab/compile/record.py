@@ -14,7 +14,9 @@ A beam whose inputs differ only in its section (:data:`SECTION`: a thickness, a 
 density) keeps its layout: its rows are copied with its element data computed again from the
 new section (``section``, :func:`morphlab.compile.bodies.section_rows`), which costs the
 elements' arithmetic and none of the frames' bookkeeping. A thickness variable of a
-many-frame skin, compiled once per variable by a sensitivity run, is that case.
+many-frame skin, compiled once per variable by a sensitivity run, is that case; when no other
+item changed, the whole system is such a copy (:func:`same_item` compares the other items;
+``morphlab.compile.compile``).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels.schema import DESIGN, KINDS, TIME, TOPOLOGY
+from ..model import Item
 
 #: Attributes of a beam that are not inputs of its compile.
 _NOT_INPUTS = {"_model", "name"}
@@ -57,7 +60,9 @@ def inputs(beam) -> dict:
     return {k: v for k, v in vars(beam).items() if k not in _NOT_INPUTS}
 
 
-def _equal(a, b) -> bool:
+def equal(a, b) -> bool:
+    """Are two input values equal: numbers of one type, or numeric arrays of one shape (a
+    complex part included)?"""
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         a, b = np.asarray(a), np.asarray(b)
         return a.shape == b.shape and a.dtype.kind in "biufc" and b.dtype.kind in "biufc" \
@@ -68,16 +73,35 @@ def _equal(a, b) -> bool:
         return False
 
 
+def _same(a, b) -> bool:
+    """:func:`equal`, with the items a value refers to (a joint's bodies) compared by kind and
+    name: they are compared as items themselves."""
+    if isinstance(a, Item) or isinstance(b, Item):
+        return type(a) is type(b) and a.name == b.name
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(map(_same, a, b))
+    return equal(a, b)
+
+
+def same_item(a, b) -> bool:
+    """Are two items (of two designs of a model) of one kind and name and equal in every
+    input?"""
+    if type(a) is not type(b) or a.name != b.name:
+        return False
+    x, y = inputs(a), inputs(b)
+    return x.keys() == y.keys() and all(_same(x[k], y[k]) for k in x)
+
+
 def same_inputs(a: dict, b: dict) -> bool:
     """Are two beams' inputs equal (every attribute, complex parts included)?"""
-    return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
 
 
 def changed_inputs(a: dict, b: dict) -> set | None:
     """The names of the inputs that differ between two beams (None: not the same attributes)."""
     if a.keys() != b.keys():
         return None
-    return {k for k in a if not _equal(a[k], b[k])}
+    return {k for k in a if not equal(a[k], b[k])}
 
 
 def entry(beam, b, before: tuple) -> Entry:
