@@ -28,6 +28,8 @@ by Smith's algorithm, which for a zero imaginary part gives ``a (1 / b)``, not `
 every sum starts from ``+0`` (a complex product can carry a ``-0`` imaginary part).
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 # 4-point Gauss–Legendre rule on [0, 1]: exact for polynomials up to degree 7, enough for
@@ -211,6 +213,30 @@ def element_stiffness(X1, X2, EA, EI, K):
             K[..., a, b] = _sum_nz(T[..., :, a], P[..., :, b], a)
 
 
+def _stress_rows(X1, X2, dtype):
+    """``(Bs, Bk)`` (..., 2, 6): per element end, the axial strain ``eps = (u2' - u1')/L`` and
+    the curvature ``kappa = v''`` as rows on the body-frame element DOFs."""
+    L, c, s = element_geometry(X1, X2)
+    inv = 1.0 / L
+    T = _local_transform(c, s)
+    Bs = np.zeros(L.shape + (2, 6), dtype=dtype)
+    Bk = np.zeros(L.shape + (2, 6), dtype=dtype)
+    for end in range(2):
+        xi = float(end)
+        bl = np.zeros(L.shape + (6,), dtype=dtype)  # the strain part
+        bl[..., 0] = -inv
+        bl[..., 3] = inv
+        kap = np.zeros(L.shape + (6,), dtype=dtype)  # the curvature v''
+        kap[..., 1] = (-6.0 + 12.0 * xi) * inv * inv
+        kap[..., 2] = (-4.0 + 6.0 * xi) * inv
+        kap[..., 4] = (6.0 - 12.0 * xi) * inv * inv
+        kap[..., 5] = (-2.0 + 6.0 * xi) * inv
+        for b in range(6):
+            Bs[..., end, b] = _sum_nz(bl, T[..., :, b], b)
+            Bk[..., end, b] = _sum_nz(kap, T[..., :, b], b)
+    return Bs, Bk
+
+
 def element_stress_matrix(X1, X2, E, cfib, B):
     """Linear map from element DOFs to the outer-fibre normal stress at both element ends.
 
@@ -231,24 +257,58 @@ def element_stress_matrix(X1, X2, E, cfib, B):
     ``sigma = E (eps - y' kappa)`` with ``eps = (u2' - u1')/L`` and ``kappa = v''`` of the cubic
     Hermite interpolation, which is linear along the element and so peaks at an end.
     """
-    L, c, s = element_geometry(X1, X2)
-    inv = 1.0 / L
-    T = _local_transform(c, s)
-    E, cfib = np.asarray(E)[..., None], np.asarray(cfib)
-    for end in range(2):
-        xi = float(end)
-        bl = np.zeros(L.shape + (6,), dtype=B.dtype)  # the strain part
-        bl[..., 0] = -inv
-        bl[..., 3] = inv
-        kap = np.zeros(L.shape + (6,), dtype=B.dtype)  # the curvature v''
-        kap[..., 1] = (-6.0 + 12.0 * xi) * inv * inv
-        kap[..., 2] = (-4.0 + 6.0 * xi) * inv
-        kap[..., 4] = (6.0 - 12.0 * xi) * inv * inv
-        kap[..., 5] = (-2.0 + 6.0 * xi) * inv
-        for f, y in enumerate((cfib, -cfib)):
-            row = E * (bl - np.asarray(y)[..., None] * kap)
-            for b in range(6):
-                B[..., end, f, b] = _sum_nz(row, T[..., :, b], b)
+    B[...] = _stresses(*_stress_rows(X1, X2, B.dtype), E, cfib)
+
+
+def _stresses(Bs, Bk, E, cfib):
+    """The stress maps (..., 2, 2, 6) ``E (eps - y' kappa)`` at ``y' = +cfib, -cfib`` from the
+    rows of :func:`_stress_rows`."""
+    E, c = np.asarray(E)[..., None, None], np.asarray(cfib)[..., None, None]
+    return np.stack([E * (Bs - c * Bk), E * (Bs + c * Bk)], axis=-2)
+
+
+class Units(NamedTuple):
+    """The data of a stack of elements per unit section value: they depend on the geometry
+    alone, and the data are linear in the section (:func:`element_data`). ``scal`` (n, 4),
+    ``IS`` (n, 2, 6), ``I0S``, ``I0IS`` (n, 6), ``Mff``, ``St`` (n, 6, 6): the invariants per
+    unit ``rhoA``; ``Ka``, ``Kb`` (n, 6, 6): the stiffness per unit ``EA`` and ``EI``; ``Bs``,
+    ``Bk`` (n, 2, 6): the strain and curvature rows of each end (the stress maps per unit ``E``
+    and ``E cfib``)."""
+
+    scal: np.ndarray
+    IS: np.ndarray
+    I0S: np.ndarray
+    I0IS: np.ndarray
+    Mff: np.ndarray
+    St: np.ndarray
+    Ka: np.ndarray
+    Kb: np.ndarray
+    Bs: np.ndarray
+    Bk: np.ndarray
+
+
+def element_units(X1, X2, dtype) -> Units:
+    """The :class:`Units` of the elements ``X1 -> X2`` ((n, 2) each, in their frames)."""
+    n = X1.shape[0]
+    scal = np.zeros((n, 4), dtype=dtype)
+    IS = np.zeros((n, 2, 6), dtype=dtype)
+    I0S, I0IS = np.zeros((n, 6), dtype=dtype), np.zeros((n, 6), dtype=dtype)
+    Mff, St, Ka, Kb = (np.zeros((n, 6, 6), dtype=dtype) for _ in range(4))
+    element_invariants(X1, X2, 1.0, scal, IS, I0S, I0IS, Mff, St)
+    element_stiffness(X1, X2, 1.0, 0.0, Ka)
+    element_stiffness(X1, X2, 0.0, 1.0, Kb)
+    return Units(scal, IS, I0S, I0IS, Mff, St, Ka, Kb, *_stress_rows(X1, X2, dtype))
+
+
+def element_data(u: Units, rhoA, EA, EI, E, cfib) -> tuple:
+    """The arrays of :func:`element_arrays` from the elements' units ``u`` and their section
+    ``rhoA, EA, EI, E, cfib`` ((n,) each): products and one sum per entry, each element's
+    from its own units and section (the same bits for an element alone or in a stack)."""
+    r = np.asarray(rhoA)
+    EA, EI = np.asarray(EA)[:, None, None], np.asarray(EI)[:, None, None]
+    return (r[:, None] * u.scal, r[:, None, None] * u.IS, r[:, None] * u.I0S,
+            r[:, None] * u.I0IS, r[:, None, None] * u.Mff, r[:, None, None] * u.St,
+            EA * u.Ka + EI * u.Kb, _stresses(u.Bs, u.Bk, E, cfib))
 
 
 def element_arrays(X1, X2, rhoA, EA, EI, E, cfib, dtype) -> tuple:
@@ -258,18 +318,16 @@ def element_arrays(X1, X2, rhoA, EA, EI, E, cfib, dtype) -> tuple:
     E, cfib`` (n,) or scalars: section data (:func:`beam_element_arrays`). Returns ``(scal
     (n, 4), IS (n, 2, 6), I0S (n, 6), I0IS (n, 6), Mff (n, 6, 6), St (n, 6, 6), K (n, 6, 6),
     B (n, 2, 2, 6))``, ``scal`` each element's share of its body's ``[m, I_u_x, I_u_y,
-    I_00]``. Every entry of element ``e`` comes from element ``e``'s data alone by elementwise
+    I_00]``: the :class:`Units` of the geometry scaled by the section (:func:`element_data`).
+    Every entry of element ``e`` comes from element ``e``'s data alone by elementwise
     operations, so it has the same bits whatever else is in the stack."""
     n = X1.shape[0]
-    scal = np.zeros((n, 4), dtype=dtype)
-    IS = np.zeros((n, 2, 6), dtype=dtype)
-    I0S, I0IS = np.zeros((n, 6), dtype=dtype), np.zeros((n, 6), dtype=dtype)
-    Mff, St, K = (np.zeros((n, 6, 6), dtype=dtype) for _ in range(3))
-    B = np.zeros((n, 2, 2, 6), dtype=dtype)
-    element_invariants(X1, X2, rhoA, scal, IS, I0S, I0IS, Mff, St)
-    element_stiffness(X1, X2, EA, EI, K)
-    element_stress_matrix(X1, X2, E, cfib, B)
-    return scal, IS, I0S, I0IS, Mff, St, K, B
+
+    def each(v):
+        return np.broadcast_to(np.asarray(v, dtype=dtype), (n,))
+
+    return element_data(element_units(X1, X2, dtype), *(each(v) for v in
+                                                        (rhoA, EA, EI, E, cfib)))
 
 
 def beam_element_arrays(X, conn, rhoA, EA, EI, E, cfib, body_scalars, IS, I0S, I0IS, Mff, St, K,

@@ -16,7 +16,7 @@ import numpy as np
 from ..kernels.joints import ROW_ANGLE, ROW_X, ROW_Y
 from ..model import Beam, RigidBody
 from ..model.frames import holding_frame, specs_of
-from .beam import element_arrays
+from .beam import Units, element_data, element_units
 from .builder import Builder, compiles
 from .system import BodyInfo
 
@@ -186,28 +186,39 @@ def _frame_invariants(efd, f0: int, nf: int, IS, I0S, I0IS, dt) -> tuple:
     return fIS, fI0S, fI0IS
 
 
-def _element_arrays(body: Beam, specs: list, dt) -> list:
+def _element_arrays(body: Beam, specs: list, dt, units: dict | None = None) -> list:
     """Invariants, matrices and stress maps of the elements of the frames ``specs`` of
     ``body``, each in its frame, in one stack (:func:`.beam.element_arrays`); per frame
-    ``(scal (4,), IS, I0S, I0IS, M, St, K, B)``."""
+    ``(scal (4,), IS, I0S, I0IS, M, St, K, B)``. ``units``: the frames' element units
+    (:class:`.beam.Units`) by ``(first element, dtype)``, taken from there where present and
+    kept there where computed (another section of the same geometry then costs products
+    only)."""
     if not specs:
         return []
-    ends, rows = [], []
-    for spec in specs:
-        Xb = np.asarray(_frame_nodes(body, spec)[2], dtype=dt)
-        ends.append((Xb[:-1], Xb[1:]))
-        rows.append(np.arange(spec.first, spec.last))
-    rows = np.concatenate(rows)
+    rows = np.concatenate([np.arange(spec.first, spec.last) for spec in specs])
+    dt = np.dtype(dt)
+    todo = specs if units is None else [s for s in specs if (s.first, dt) not in units]
+    if todo:
+        ends = [np.asarray(_frame_nodes(body, spec)[2], dtype=dt) for spec in todo]
+        new = element_units(np.concatenate([X[:-1] for X in ends]),
+                            np.concatenate([X[1:] for X in ends]), dt)
+    if units is None:
+        u = new
+    else:
+        k = 0
+        for spec in todo:
+            n = spec.last - spec.first
+            units[(spec.first, dt)] = Units(*(a[k:k + n] for a in new))
+            k += n
+        parts = [units[(spec.first, dt)] for spec in specs]
+        u = parts[0] if len(parts) == 1 else Units(*map(np.concatenate, zip(*parts)))
 
     def part(value):  # a section value: a scalar or one per element of the beam
         value = np.asarray(value)
         return (value[rows] if value.ndim == 1 else np.full(rows.shape, value)).astype(dt)
 
-    arrays = element_arrays(np.concatenate([e[0] for e in ends]),
-                            np.concatenate([e[1] for e in ends]),
-                            part(body.rho * body.area), part(body.E * body.area),
-                            part(body.E * body.second_moment), part(body.E), part(body.fibre),
-                            dt)
+    arrays = element_data(u, part(body.rho * body.area), part(body.E * body.area),
+                          part(body.E * body.second_moment), part(body.E), part(body.fibre))
     out, k = [], 0
     for spec in specs:
         n = spec.last - spec.first
@@ -250,7 +261,8 @@ def section_rows(body: Beam, dt, like, starts: dict) -> dict:
            "flex": {k: rows(flex, k, x0, x1) for k in ("IS", "I0S", "I0IS")},
            "elements": {k: rows(elements, k, e0, e0 + n_el) for k in ("M", "St", "K", "B")}}
     for f, (scal, IS, I0S, I0IS, Me, Se, Ke, Be) in zip(
-            redo, _element_arrays(body, [specs[f] for f in redo], dt)):
+            redo, _element_arrays(body, [specs[f] for f in redo], dt,
+                                  like.record[body.name].units)):
         spec = specs[f]
         f0, f1 = (int(i) for i in bodies.flex[b0 + f])
         efd = elements.fdof[e0 + spec.first:e0 + spec.last]
