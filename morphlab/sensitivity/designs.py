@@ -231,10 +231,11 @@ def _items(sys0: System, ch: Change) -> tuple[dict, dict, set]:
     return items, linear, flex
 
 
-def _tables(sys0: System, T0: Times, per_variable: list, dtype, add_nominal: bool):
+def _tables(sys0: System, T0: Times, per_variable: list, dtype, add_nominal: bool,
+            kinds=TIMED_NAMES):
     """Time values of one path, a table per variable with a change (0: none): the derivative
     tables (``add_nominal`` False: the linear path, table 0 zeros) or the perturbed ones (the
-    nominal plus the change times the perturbation)."""
+    nominal plus the change times the perturbation); None for the kinds not in ``kinds``."""
     index = np.zeros(len(per_variable), dtype=np.int64)
     stacks = []
     for i, extra in enumerate(per_variable):
@@ -242,19 +243,23 @@ def _tables(sys0: System, T0: Times, per_variable: list, dtype, add_nominal: boo
             index[i] = len(stacks) + 1
             stacks.append(extra)
     out = []
-    for j, _name in enumerate(TIMED_NAMES):
+    for j, name in enumerate(TIMED_NAMES):
         tt = T0[j]
-        if tt is None:
+        if tt is None or name not in kinds:
             out.append(None)
             continue
         fields = []
         for m, x in enumerate(tt):
-            base = x[0].astype(dtype) if add_nominal else np.zeros(x.shape[1:], dtype=dtype)
-            layers = [base]
-            for extra, scale in stacks:
-                d = extra[j][m] if extra[j] is not None else np.zeros(x.shape[1:])
-                layers.append(base + scale * d if add_nominal else np.asarray(d, dtype=dtype))
-            fields.append(np.ascontiguousarray(np.stack(layers)))
+            layers = np.zeros((1 + len(stacks),) + x.shape[1:], dtype=dtype)
+            if add_nominal:
+                layers[:] = x[0]
+            for layer, (extra, scale) in enumerate(stacks, 1):
+                if extra[j] is not None:
+                    if add_nominal:
+                        layers[layer] += scale * extra[j][m]
+                    else:
+                        layers[layer] = extra[j][m]
+            fields.append(layers)
         out.append(type(tt)(*fields))
     return Times(*out), index
 
@@ -306,8 +311,7 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
         need.update(("flex", "elements"))
     MN = views(sys0.arrays_as(dt), DN)
     MN = MN._replace(**{k: None for k in KIND_NAMES if k not in need})
-    TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True)
-    TN = Times(*(None if n not in need else x for n, x in zip(TIMED_NAMES, TN)))
+    TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True, kinds=need)
     n_flex = sys0.count("flex")
     return Pseudo(OFF, OFFN, IDX, FOFF, FIDX, PO, PP, PV, VN, D0, ML, ZL, TL, tl, MN, DN, TN,
                   tn, np.asarray(pert, dtype=np.complex128),
