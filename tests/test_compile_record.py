@@ -127,3 +127,15 @@ def test_a_copied_beam_of_a_model_started_by_a_drive_takes_the_velocities_anew(s
         assert like.record["coupler"].info is nominal.record["coupler"].info
         assert like.bodies is not nominal.bodies  # compiled: its velocities computed anew
         _assert_identical(like, ml.compile_model(build(t)))
+
+
+def test_a_changed_gravity_is_compiled_not_copied(nominal):
+    """The gravity enters every body's load: a design with another gravity (and a new skin
+    thickness) is compiled, not copied, and equals its own compile."""
+    p = dict(le.DEFAULTS, t_w=le.DEFAULTS["t_w"] + 1e-30j)
+    model = le.build(p)
+    model.gravity = model.gravity + np.array([0.0, -1.0])
+    like = ml.compile_model(model, like=nominal)
+    assert like.bodies is not nominal.bodies
+    _assert_identical(like, ml.compile_model(model))
+    assert not np.array_equal(like.arrays.gravity, nominal.arrays.gravity)

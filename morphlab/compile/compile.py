@@ -18,6 +18,7 @@ from ..errors import ModelError
 from ..kernels.schema import KINDS, PATTERN, TOPOLOGY
 from ..kernels.system import KIND_NAMES, TIMED_NAMES
 from ..model import Beam, Model
+from ..model.items import COLLECTIONS
 from ..model.profiles import Profile
 from . import bodies, forces, joints, loads  # noqa: F401 - they register the compile functions
 from .bodies import section_rows
@@ -26,7 +27,7 @@ from .checks import check_initial, check_rank
 from .design import flatten, layout, views
 from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
-from .record import SECTION, changed_inputs, counts, entry, equal, inputs, replay, same_item
+from .record import SECTION, changed_inputs, counts, entry, inputs, replay, same_item, same_value
 from .system import System
 
 
@@ -87,14 +88,18 @@ def _section_copy(model: Model, like: System, dt) -> System | None:
     sections of beams alone (:data:`~morphlab.compile.record.SECTION`; the thickness variables
     of a sensitivity run): ``like``'s design data with the changed beams' rows computed again
     (:func:`~morphlab.compile.bodies.section_rows`), everything else ``like``'s. None where that
-    does not hold (another item or the gravity changed, a beam's nodes or frames, ``like``
-    complex and ``dt`` real, or initial velocities that the mass of the beams could enter).
+    does not hold (another item or a setting of the model changed, a beam's nodes or frames,
+    ``like`` complex and ``dt`` real, or initial velocities that the beams' mass could enter).
 
     The copy equals a compile from scratch bit for bit (``tests/test_compile_record.py``):
     a section enters the element data only, the DOFs, rows, pattern, time data and checks
     (which read the geometry) are ``like``'s."""
-    if not like.record or (like.dtype.kind == "c" and dt.kind != "c") or np.any(like.v0 != 0) \
-            or not equal(model.gravity, like.model.gravity):
+    if not like.record or (like.dtype.kind == "c" and dt.kind != "c") or np.any(like.v0 != 0):
+        return None
+    # the model's own settings (the gravity; any a later version adds), its lists aside
+    mine, theirs = vars(model), vars(like.model)
+    if mine.keys() != theirs.keys() or not all(
+            same_value(v, theirs[k]) for k, v in mine.items() if k not in COLLECTIONS):
         return None
     new, old = items_of(model), items_of(like.model)
     if len(new) != len(old):

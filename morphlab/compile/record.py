@@ -75,13 +75,13 @@ def equal(a, b) -> bool:
         return False
 
 
-def _same(a, b) -> bool:
+def same_value(a, b) -> bool:
     """:func:`equal`, with the items a value refers to (a joint's bodies) compared by kind and
     name: they are compared as items themselves."""
     if isinstance(a, Item) or isinstance(b, Item):
         return type(a) is type(b) and a.name == b.name
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return type(a) is type(b) and len(a) == len(b) and all(map(_same, a, b))
+        return type(a) is type(b) and len(a) == len(b) and all(map(same_value, a, b))
     return equal(a, b)
 
 
@@ -91,7 +91,7 @@ def same_item(a, b) -> bool:
     if type(a) is not type(b) or a.name != b.name:
         return False
     x, y = inputs(a), inputs(b)
-    return x.keys() == y.keys() and all(_same(x[k], y[k]) for k in x)
+    return x.keys() == y.keys() and all(same_value(x[k], y[k]) for k in x)
 
 
 def same_inputs(a: dict, b: dict) -> bool:
