@@ -85,7 +85,8 @@ def compile_beam(body: Beam, b: Builder) -> None:
     Xc = np.zeros((n_node, 2), dtype=np.result_type(body.nodes, float))
     angle0 = np.zeros(n_node, dtype=object)
     frames = []
-    for f, elem in enumerate(_element_arrays(body, specs, b.dtype)):
+    units = b.units[body.name] = beam_units(body, specs, b.dtype)  # kept by the record
+    for f, elem in enumerate(_element_arrays(body, specs, b.dtype, units)):
         spec = specs[f]
         name = body.name if n_fr == 1 else f"{body.name}#{f}"
         frame = _compile_frame(body, spec, name, b, elem)
@@ -186,32 +187,25 @@ def _frame_invariants(efd, f0: int, nf: int, IS, I0S, I0IS, dt) -> tuple:
     return fIS, fI0S, fI0IS
 
 
-def _element_arrays(body: Beam, specs: list, dt, units: dict | None = None) -> list:
+def beam_units(body: Beam, specs: list, dt) -> Units:
+    """The element units (:class:`.beam.Units`) of the elements of the frames ``specs`` of
+    ``body``, each in its frame, in one stack in the frames' order."""
+    ends = [np.asarray(_frame_nodes(body, spec)[2], dtype=dt) for spec in specs]
+    return element_units(np.concatenate([X[:-1] for X in ends]),
+                         np.concatenate([X[1:] for X in ends]), dt)
+
+
+def _element_arrays(body: Beam, specs: list, dt, units: Units | None = None) -> list:
     """Invariants, matrices and stress maps of the elements of the frames ``specs`` of
-    ``body``, each in its frame, in one stack (:func:`.beam.element_arrays`); per frame
-    ``(scal (4,), IS, I0S, I0IS, M, St, K, B)``. ``units``: the frames' element units
-    (:class:`.beam.Units`) by ``(first element, dtype)``, taken from there where present and
-    kept there where computed (another section of the same geometry then costs products
-    only)."""
+    ``body``, each in its frame, in one stack (:func:`.beam.element_data`); per frame
+    ``(scal (4,), IS, I0S, I0IS, M, St, K, B)``. ``units``: the units of all the beam's
+    elements (:func:`beam_units`; computed for ``specs`` when None). The units of a real
+    geometry serve a complex section too: a float and a complex evaluation of real data agree
+    bit for bit (:mod:`.beam`)."""
     if not specs:
         return []
     rows = np.concatenate([np.arange(spec.first, spec.last) for spec in specs])
-    dt = np.dtype(dt)
-    todo = specs if units is None else [s for s in specs if (s.first, dt) not in units]
-    if todo:
-        ends = [np.asarray(_frame_nodes(body, spec)[2], dtype=dt) for spec in todo]
-        new = element_units(np.concatenate([X[:-1] for X in ends]),
-                            np.concatenate([X[1:] for X in ends]), dt)
-    if units is None:
-        u = new
-    else:
-        k = 0
-        for spec in todo:
-            n = spec.last - spec.first
-            units[(spec.first, dt)] = Units(*(a[k:k + n] for a in new))
-            k += n
-        parts = [units[(spec.first, dt)] for spec in specs]
-        u = parts[0] if len(parts) == 1 else Units(*map(np.concatenate, zip(*parts)))
+    u = beam_units(body, specs, dt) if units is None else Units(*(a[rows] for a in units))
 
     def part(value):  # a section value: a scalar or one per element of the beam
         value = np.asarray(value)

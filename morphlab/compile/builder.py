@@ -135,6 +135,7 @@ class Builder:
         self.tables = {name: Table(KINDS[name]) for name in KIND_NAMES}
         self.bodies: dict[str, BodyInfo] = {}
         self.locate: dict[str, Callable] = {}  # body name -> f(at) -> (dofs, u0, angle0)
+        self.units: dict = {}  # beam name -> its element units (compile/record.py keeps them)
         self._points: dict = {}  # (body name, at) -> what locate gave (read only)
         self.dof_names: list[str] = []
         self.q0: list = []

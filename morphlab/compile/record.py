@@ -40,8 +40,9 @@ class Entry(NamedTuple):
     ``before`` and ``after`` it (:func:`counts`), its body information, the function that
     finds its material points and the initial velocities of its DOFs as the model gives them
     (``v0``: before the compile computes them from the drives, which it does again for the
-    other design); ``units``: the element units of its frames, kept by the section copies
-(:func:`morphlab.compile.bodies.section_rows`) for the next: the geometry is the same)."""
+    other design); ``units``: the element units of its elements (geometry only,
+:class:`~morphlab.compile.beam.Units`), from which a section copy forms the new section's
+element data (:func:`morphlab.compile.bodies.section_rows`)."""
 
     inputs: dict
     before: tuple
@@ -49,7 +50,7 @@ class Entry(NamedTuple):
     info: object
     locate: Callable
     v0: list
-    units: dict
+    units: object
 
 
 def counts(b) -> tuple:
@@ -109,7 +110,7 @@ def changed_inputs(a: dict, b: dict) -> set | None:
 def entry(beam, b, before: tuple) -> Entry:
     """The record of ``beam``, just compiled into ``b`` from the counts ``before``."""
     return Entry(inputs(beam), before, counts(b), b.bodies[beam.name], b.locate[beam.name],
-                 b.v0[before[0]:], {})
+                 b.v0[before[0]:], b.units.get(beam.name))
 
 
 def replay(beam, b, like, section: Callable | None = None) -> Entry | None:
