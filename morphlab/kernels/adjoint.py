@@ -60,7 +60,9 @@ class Sweep(NamedTuple):
     ``Bl`` (n_con, m) (module docstring); the responses' terms ``Hq, Hv, Ha`` (n_t, n_dof,
     m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``; the
     pseudo-load data ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,),
-    ``RI``; the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``, ``r``,
+    ``RI``, and its units of evaluation (unit ``u`` evaluates variable ``UV[u]`` of ``ps``
+    for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.designs.share_units``);
+    the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``, ``r``,
     ``work`` (n, m), ``gb`` (n_dof, m), ``column`` (:class:`~morphlab.kernels.
     pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
@@ -77,6 +79,9 @@ class Sweep(NamedTuple):
     ps: tuple
     RO: np.ndarray
     RI: np.ndarray
+    UO: np.ndarray
+    UI: np.ndarray
+    UV: np.ndarray
     grad: np.ndarray
     zb: np.ndarray
     mu: np.ndarray
@@ -157,15 +162,18 @@ def _design_share(a, M, T, sc, new, old, k):
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
     if sc.has_old:
         load(column.XO, old)
-    for i in range(a.grad.shape[0]):
-        explicit(ps, M, T, i, new, column.XN, sc.w_new, k, column)
+    for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
+        v = a.UV[u]
+        explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit(ps, M, T, i, old, column.XO, sc.w_old, k - 1, column)
-        for j in range(a.RO[i], a.RO[i + 1]):
-            r = a.RI[j]
-            for c in range(m):
-                a.grad[i, c] -= col[r] * mu[r, c]
-            col[r] = 0.0
+            explicit(ps, M, T, v, old, column.XO, sc.w_old, k - 1, column)
+        for jj in range(a.UO[u], a.UO[u + 1]):
+            i = a.UI[jj]
+            for j in range(a.RO[i], a.RO[i + 1]):
+                r = a.RI[j]
+                for c in range(m):
+                    a.grad[i, c] -= col[r] * mu[r, c]
+                col[r] = 0.0
 
 
 @kernel

@@ -34,7 +34,7 @@ from ..solve.record import keep_record
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
-from .designs import CS_STEP
+from .designs import CS_STEP, share_units
 from .direct import converged_blocks
 from .histories import to_store
 
@@ -219,10 +219,11 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     n, n_dof, n_con, m = sys0.n, sys0.n_dof, sys0.n_con, len(vjps)
     n_x = dq0.shape[1]
     RO, RI = _touched(sys0, ps)
+    ps, UO, UI, UV = share_units(ps, RO, RI)
     a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
                    np.zeros((n_dof, m)), np.zeros((n_con, m)),
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, np.zeros((n_x, m)), np.zeros((n, m)),
+                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
                    Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
                    np.zeros((6, sys0.nnz)),
