@@ -10,6 +10,7 @@ the same layout (a working copy a sensitivity run writes designs into).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -40,7 +41,7 @@ def layout(arrays: SystemArrays) -> list[Slot]:
             continue
         for f in KINDS[name].by_role(DESIGN):
             a = getattr(table, f.name)
-            size = int(np.prod(f.shape, dtype=np.int64))
+            size = math.prod(f.shape)
             out.append(Slot(name, f.name, pos, a.shape[0], size))
             pos += a.shape[0] * size
     return out
