@@ -30,7 +30,7 @@ from ._jit import inner, kernel
 from .assemble import matrix
 from .csc import residual, subtract_product
 from .newton import Factors, solve_factored_transposed
-from .pseudo import any_parts, explicit_linear, explicit_perturbed, linear_of, load
+from .pseudo import explicit, load
 from .types import Level
 
 
@@ -154,10 +154,9 @@ def kept_factor(K, F, j):
 def _design_share(a, M, T, sc, new, old, k):
     """``grad_i -= (dR_k/dp_i)^T mu`` for every variable, over the rows it touches."""
     # the fields the loop reads, bound before it (read inside, the large ``ps`` is extracted
-    # from ``a`` again for every call), and the linear path's calls passed its own data
-    # (:class:`~morphlab.kernels.pseudo.Linear`), not ``ps``
+    # from ``a`` again for every call), and ``explicit`` called here, not through a helper
+    # (an inlined one copies ``ps`` too): each costs 0.2 of the pendulum's sweep
     ps, mu, column = a.ps, a.mu, a.column
-    L = linear_of(ps)
     col = column.R
     m = mu.shape[1]
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
@@ -165,13 +164,9 @@ def _design_share(a, M, T, sc, new, old, k):
         load(column.XO, old)
     for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
         v = a.UV[u]
-        explicit_linear(L, v, new, sc.w_new, k, column)
+        explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit_linear(L, v, old, sc.w_old, k - 1, column)
-        if any_parts(ps.OFFN[v]):
-            explicit_perturbed(ps, M, T, v, new, column.XN, sc.w_new, k, column)
-            if sc.has_old:
-                explicit_perturbed(ps, M, T, v, old, column.XO, sc.w_old, k - 1, column)
+            explicit(ps, M, T, v, old, column.XO, sc.w_old, k - 1, column)
         for jj in range(a.UO[u], a.UO[u + 1]):
             i = a.UI[jj]
             for j in range(a.RO[i], a.RO[i + 1]):

@@ -18,7 +18,7 @@ import numpy as np
 # the kernel modules: importing one registers its kinds (morphlab.kernels.schema.KINDS), in
 # this order; a new kind of item is one module here and its two calls below
 from . import ffrf, ffrf_matrix, forces, joints, loads, pressure, slides
-from ._jit import inlined, inner, kernel
+from ._jit import inner, kernel
 from .schema import KINDS
 from .types import Level, Weights
 
@@ -47,7 +47,8 @@ class Step(NamedTuple):
     k: int
 
 
-def _residual(M, x, w, T, t, k, P, n_dof, R, W):
+@kernel
+def residual(M, x, w, T, t, k, P, n_dof, R, W):
     """Add the residual share of the state ``x`` (:class:`~morphlab.kernels.types.Level`,
     weights ``w``) over the parts ``P`` (:data:`~morphlab.kernels.system.Parts`) to ``R``
     (n_dof + n_con): equation rows ``wm M a + wl J^T lam + wf (K q + D q' - Q_v - Q_g - Q_ext
@@ -81,13 +82,6 @@ def _residual(M, x, w, T, t, k, P, n_dof, R, W):
     if o[FOLLOWERS + 1] > o[FOLLOWERS]:
         loads.point_force_residual(M.followers, x.q, w.wf, T.followers, t, k,
                                    i[o[FOLLOWERS]:o[FOLLOWERS + 1]], R)
-
-
-residual = kernel(_residual)
-#: :func:`residual` inlined into its caller at Numba level: the pseudo-loads' linear path calls
-#: it once per variable and step over a few items, where passing the system's tables to a call
-#: of its own costs as much as the items' terms (``morphlab.kernels.pseudo``).
-residual_inlined = inlined(_residual)
 
 
 @kernel

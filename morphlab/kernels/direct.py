@@ -32,7 +32,7 @@ from .assemble import matrix
 from .csc import residual, subtract_product
 from .newmark import predict, update
 from .newton import solve_factored
-from .pseudo import any_parts, explicit_linear, explicit_perturbed, linear_of, load
+from .pseudo import explicit, load
 
 
 class Direct(NamedTuple):
@@ -72,7 +72,6 @@ def rhs(d, M, T, sc, D, new, old, k):
     lev = d.DQ.shape[1], d.DV.shape[1], d.DA.shape[1], d.DG.shape[1], d.DL.shape[1]
     m = k - 1 if k > 0 else 0  # the initial solve's "old" level: the initial state itself
     ps, column = d.ps, d.column  # bound before the loop (adjoint._design_share says why)
-    L = linear_of(ps)
     col = column.R
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
     if sc.has_old:
@@ -80,13 +79,9 @@ def rhs(d, M, T, sc, D, new, old, k):
     for i in range(n_x):
         for r in range(col.shape[0]):
             col[r] = 0.0
-        explicit_linear(L, i, new, sc.w_new, k, column)
+        explicit(ps, M, T, i, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit_linear(L, i, old, sc.w_old, m, column)
-        if any_parts(ps.OFFN[i]):
-            explicit_perturbed(ps, M, T, i, new, column.XN, sc.w_new, k, column)
-            if sc.has_old:
-                explicit_perturbed(ps, M, T, i, old, column.XO, sc.w_old, m, column)
+            explicit(ps, M, T, i, old, column.XO, sc.w_old, m, column)
         for r in range(col.shape[0]):
             d.rhs[r, i] = -col[r]
     # the state part: R_q dq_hat + R_v dv_hat over the predictors of every column

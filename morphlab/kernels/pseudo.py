@@ -21,15 +21,19 @@ Parts`) along one of two paths:
   nominal's restored) and the perturbed time tables ``TN``.
 
 The parts each variable changes are evaluated alone: a thickness variable of a few elements
-costs a few elements, not a whole residual.
+costs a few elements, not a whole residual. Parts of the bodies' kinds alone (a section, a
+material: the common case on the linear path) go to their kernel directly, not through the
+dispatch over every kind, to which the whole system's tables would be passed once per
+variable, level and step (about 1 µs a call, as much as a thickness variable's own terms).
 """
 
 from typing import NamedTuple
 
 import numpy as np
 
+from . import ffrf
 from ._jit import inner, kernel
-from .assemble import residual, residual_inlined
+from .assemble import BODIES, ELEMENTS, residual
 from .system import Parts, set_positions
 from .types import Level
 
@@ -73,11 +77,11 @@ class Pseudo(NamedTuple):
 
 class Column(NamedTuple):
     """One variable's explicit part and its scratch: ``R`` (n,) float64, the column
-    :func:`explicit_linear` and :func:`explicit_perturbed` add to; ``RN``, ``R0`` (n,):
-    scratch residuals of the perturbed path (``DN``'s dtype, float64); ``mask`` (n_flex,)
-    bool, all False between calls; ``XN``, ``XO``: the new and the old level's state in
-    ``DN``'s dtype (:class:`~morphlab.kernels.types.Level`), which the perturbed path
-    evaluates, loaded once a step by :func:`load` for all variables."""
+    :func:`explicit` adds to; ``RN``, ``R0`` (n,): scratch residuals of the perturbed path
+    (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls; ``XN``,
+    ``XO``: the new and the old level's state in ``DN``'s dtype
+    (:class:`~morphlab.kernels.types.Level`), which the perturbed path evaluates, loaded once
+    a step by :func:`load` for all variables."""
 
     R: np.ndarray
     RN: np.ndarray
@@ -100,38 +104,8 @@ class Column(NamedTuple):
                    np.zeros(n_flex, dtype=np.bool_), level(), level())
 
 
-class Linear(NamedTuple):
-    """The linear path's share of :class:`Pseudo` (the fields of the same names there; ``M``,
-    ``Z``, ``T``, ``t``, ``W`` = ``ML``, ``ZL``, ``TL``, ``tl``, ``WL``), apart: the per-variable
-    calls on that path are passed these and not the whole data, whose perturbed path's tables
-    would be passed along too (a call that takes :class:`Pseudo` costs about 1 µs a variable and
-    step more, as much as a thickness variable's own terms). The callers form it once a step
-    (:func:`linear_of`)."""
-
-    OFF: np.ndarray
-    IDX: np.ndarray
-    FOFF: np.ndarray
-    FIDX: np.ndarray
-    PO: np.ndarray
-    PP: np.ndarray
-    PV: np.ndarray
-    M: tuple
-    Z: np.ndarray
-    T: tuple
-    t: np.ndarray
-    W: tuple
-
-
 @inner
-def linear_of(ps):
-    """The :class:`Linear` of ``ps``."""
-    return Linear(ps.OFF, ps.IDX, ps.FOFF, ps.FIDX, ps.PO, ps.PP, ps.PV, ps.ML, ps.ZL, ps.TL,
-                  ps.tl, ps.WL)
-
-
-@inner
-def any_parts(off):
-    """Does a row of the parts' offsets (``OFF[i]``, ``OFFN[i]``) hold any item?"""
+def _any(off):
     return off[off.shape[0] - 1] > off[0]
 
 
@@ -147,68 +121,53 @@ def load(xn, x):
 
 
 @inner
-def _mask(L, i, mask, on):
-    """Set (``on``) or clear the mask at variable ``i``'s flexible coordinates."""
-    for j in range(L.FOFF[i], L.FOFF[i + 1]):
-        mask[L.FIDX[j]] = on
-
-
-@inner
-def explicit_linear(L, i, x, w, k, c):
-    """Add the linear path's share of ``dR/dp_i`` (:class:`Linear` ``L``) of one level's
-    residual (state ``x``, weights ``w``, time index ``k``) to the column ``c.R``
-    (:class:`Column`); nothing where variable ``i`` has none."""
-    if not any_parts(L.OFF[i]):
-        return
-    a, b = L.PO[i], L.PO[i + 1]
-    _mask(L, i, c.mask, True)
-    set_positions(L.Z, L.PP[a:b], L.PV[a:b])
-    residual_inlined(L.M, x, w, L.T, L.t[i], k, Parts(L.OFF[i], L.IDX, c.mask),
-                     x.q.shape[0], c.R, L.W)
-    for j in range(a, b):
-        L.Z[L.PP[j]] = 0.0
-    _mask(L, i, c.mask, False)
-
-
-@inner
-def explicit_perturbed(ps, M, T, i, x, xn, w, k, c):
-    """Add the perturbed path's share of ``dR/dp_i`` of one level's residual share (state
-    ``x``, the same in the perturbed path's dtype ``xn`` (:func:`load`), weights ``w``, time
-    index ``k``) to the column ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system
-    and time values (the forward difference subtracts their residual). The callers call it
-    only where variable ``i`` has such a share (:func:`any_parts` of ``ps.OFFN[i]``)."""
+def explicit(ps, M, T, i, x, xn, w, k, c):
+    """Add ``dR/dp_i`` of one level's residual share (state ``x``, the same in the perturbed
+    path's dtype ``xn`` (:func:`load`), weights ``w``, time index ``k``) to the column
+    ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system and time values (the forward
+    difference subtracts their residual)."""
     n_dof = x.q.shape[0]
     R, RN, R0, mask = c.R, c.RN, c.R0, c.mask
     a, b = ps.PO[i], ps.PO[i + 1]
     pos = ps.PP[a:b]
     for j in range(ps.FOFF[i], ps.FOFF[i + 1]):
         mask[ps.FIDX[j]] = True
-    P = Parts(ps.OFFN[i], ps.IDX, mask)
-    for j in range(RN.shape[0]):
-        RN[j] = 0.0
-    set_positions(ps.DN, pos, ps.VN[a:b])
-    residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
-    set_positions(ps.DN, pos, ps.D0[a:b])
-    if ps.forward:
-        for j in range(R0.shape[0]):
-            R0[j] = 0.0
-        residual(M, x, w, T, np.int64(0), k, P, n_dof, R0, ps.WL)
-        h = ps.pert[i].real
-        for j in range(R.shape[0]):
-            R[j] += (RN[j].real - R0[j]) / h
-    else:
-        h = ps.pert[i].imag
-        for j in range(R.shape[0]):
-            R[j] += RN[j].imag / h
+    o = ps.OFF[i]
+    if _any(o):
+        set_positions(ps.ZL, pos, ps.PV[a:b])
+        if o[ELEMENTS + 1] == o[o.shape[0] - 1]:  # the bodies' kinds alone (module docstring)
+            ML, idx = ps.ML, ps.IDX
+            ffrf.residual(ML.bodies, ML.flex, ML.elements, ML.gravity, x, w,
+                          idx[o[BODIES]:o[BODIES + 1]], idx[o[ELEMENTS]:o[ELEMENTS + 1]], mask,
+                          R, ps.WL)
+        else:
+            residual(ps.ML, x, w, ps.TL, ps.tl[i], k, Parts(o, ps.IDX, mask), n_dof, R, ps.WL)
+        for j in range(a, b):
+            ps.ZL[ps.PP[j]] = 0.0
+    if _any(ps.OFFN[i]):
+        P = Parts(ps.OFFN[i], ps.IDX, mask)
+        for j in range(RN.shape[0]):
+            RN[j] = 0.0
+        set_positions(ps.DN, pos, ps.VN[a:b])
+        residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
+        set_positions(ps.DN, pos, ps.D0[a:b])
+        if ps.forward:
+            for j in range(R0.shape[0]):
+                R0[j] = 0.0
+            residual(M, x, w, T, np.int64(0), k, P, n_dof, R0, ps.WL)
+            h = ps.pert[i].real
+            for j in range(R.shape[0]):
+                R[j] += (RN[j].real - R0[j]) / h
+        else:
+            h = ps.pert[i].imag
+            for j in range(R.shape[0]):
+                R[j] += RN[j].imag / h
     for j in range(ps.FOFF[i], ps.FOFF[i + 1]):
         mask[ps.FIDX[j]] = False
 
 
 @kernel
 def explicit_column(ps, M, T, i, x, w, k, c):
-    """``dR/dp_i`` of one level (:func:`explicit_linear`, :func:`explicit_perturbed`) added to
-    ``c.R``, called from Python (the probe of the rows a variable touches)."""
+    """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
     load(c.XN, x)
-    explicit_linear(linear_of(ps), i, x, w, k, c)
-    if any_parts(ps.OFFN[i]):
-        explicit_perturbed(ps, M, T, i, x, c.XN, w, k, c)
+    explicit(ps, M, T, i, x, c.XN, w, k, c)
