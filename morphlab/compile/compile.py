@@ -89,7 +89,8 @@ def _section_copy(model: Model, like: System, dt) -> System | None:
     of a sensitivity run): ``like``'s design data with the changed beams' rows computed again
     (:func:`~morphlab.compile.bodies.section_rows`), everything else ``like``'s. None where that
     does not hold (another item or a setting of the model changed, a beam's nodes or frames,
-    ``like`` complex and ``dt`` real, or initial velocities that the beams' mass could enter).
+    ``like`` complex and ``dt`` real, or a moving start: initial velocities computed from the
+    drives are of least kinetic energy, which the beams' mass enters).
 
     The copy equals a compile from scratch bit for bit (``tests/test_compile_record.py``):
     a section enters the element data only, the DOFs, rows, pattern, time data and checks
