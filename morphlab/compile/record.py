@@ -95,11 +95,6 @@ def same_item(a, b) -> bool:
     return x.keys() == y.keys() and all(same_value(x[k], y[k]) for k in x)
 
 
-def same_inputs(a: dict, b: dict) -> bool:
-    """Are two beams' inputs equal (every attribute, complex parts included)?"""
-    return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
-
-
 def changed_inputs(a: dict, b: dict) -> set | None:
     """The names of the inputs that differ between two beams (None: not the same attributes)."""
     if a.keys() != b.keys():
