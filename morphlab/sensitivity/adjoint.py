@@ -30,7 +30,7 @@ from ..kernels.steps import run_steps
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp, system_data
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record
+from ..solve.record import keep_record, release
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
@@ -112,7 +112,7 @@ class AdjointHook(StepHook):
                 self.checkpoints[k0] = self.hist.state(k0 - 1)
                 return None
             self.records.append(keep_record(self.system, F, self.n_steps - k0 + 1, k0,
-                                            self.rows == 3))
+                                            self.rows == 3, pooled=True))
             self.patterns.append(F)
         R = self.records[-1]
         st = self.hist.state(k0 - 1)
@@ -160,7 +160,7 @@ class _Replay:
         k = c
         while k < k1:
             F = nw.factorization.loop_arrays()
-            K = keep_record(self.hook.system, F, k1 - k, k, self.hook.rows == 3)
+            K = keep_record(self.hook.system, F, k1 - k, k, self.hook.rows == 3, pooled=True)
             j = (k - 1) % 2
             K.Q[0], K.V[0], K.A[0], K.L[0] = H.Q[j], H.V[j], H.A[j], H.L[j]
             k_next, status, bad, it, z = run_steps(stp.M, stp.T, stp.P, stp.scheme_of(),
@@ -254,14 +254,18 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         else:
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
-            for K, F in reversed(replay.segment(c, k + 1)):
+            pieces = replay.segment(c, k + 1)
+            for K, F in reversed(pieces):
                 if k < lo:
                     break
                 k0 = max(lo, int(K.k0[0]))
                 a = _with_terms(a, vjps, sys0, k0, k)
                 kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact)
                 k = k0 - 1
+            release([K for K, _ in pieces])  # the next segment's record is made of them
         k = lo - 1
+    if hook.records:  # the next run's record is made of them (``solve/record.py``)
+        release(hook.records)
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
     total = _time.perf_counter() - t0
     refined = a.refined[np.isfinite(a.refined)]
