@@ -9,7 +9,9 @@ Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own deriva
 * ``z̄ = (ā + bh2 q̄ + gh v̄ + ga ḡ, s λ̄)``;
 * ``μ = J^-T z̄`` with the step's kept factors;
 * the design's share ``grad_i -= (dR/dp_i)^T μ`` (:mod:`morphlab.kernels.pseudo`, over the
-  residual rows variable ``i``'s parts touch);
+  residual rows variable ``i``'s parts touch); for the variables that change the bodies'
+  linear data alone, the data gradient ``G += d(μ^T R)/dD`` instead, once for all of them
+  (:mod:`morphlab.kernels.ffrf_adjoint`; the caller contracts it with their ``dD/dp``);
 * ``q̂̄ = q̄ - Dq^T μ``, ``v̂̄ = v̄ - Dv^T μ`` with the ``Dq``, ``Dv`` kept from the step's last
   Newton fill (the direct method's reuse variant transposed; the exact variant forms them and
   ``J*`` at the converged state and refines ``μ`` against ``J*``);
@@ -29,6 +31,7 @@ from numba.extending import overload
 from ._jit import inner, kernel
 from .assemble import matrix
 from .csc import residual, subtract_product
+from .ffrf_adjoint import data_gradient
 from .newton import Factors, solve_factored_transposed
 from .pseudo import explicit, load
 from .types import Level
@@ -62,9 +65,11 @@ class Sweep(NamedTuple):
     pseudo-load data ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,),
     ``RI``, and its units of evaluation (unit ``u`` evaluates variable ``UV[u]`` of ``ps``
     for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.designs.share_units``);
-    the gradient ``grad`` (n_x, m), accumulated; buffers ``zb``, ``mu``, ``r``,
-    ``work`` (n, m), ``gb`` (n_dof, m), ``column`` (:class:`~morphlab.kernels.
-    pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
+    the gradient ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no
+    rows: none) with its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.
+    data_gradient`), accumulated;
+    buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column``
+    (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
     Bq: np.ndarray
     Bv: np.ndarray
@@ -83,6 +88,8 @@ class Sweep(NamedTuple):
     UI: np.ndarray
     UV: np.ndarray
     grad: np.ndarray
+    G: np.ndarray
+    GO: np.ndarray
     zb: np.ndarray
     mu: np.ndarray
     r: np.ndarray
@@ -152,7 +159,8 @@ def kept_factor(K, F, j):
 
 @inner
 def _design_share(a, M, T, sc, new, old, k):
-    """``grad_i -= (dR_k/dp_i)^T mu`` for every variable, over the rows it touches."""
+    """``grad_i -= (dR_k/dp_i)^T mu`` for every variable of a unit, over the rows it touches;
+    the bodies' data gradient ``G += d(mu^T R_k)/dD`` (module docstring)."""
     # the fields the loop reads, bound before it (read inside, the large ``ps`` is extracted
     # from ``a`` again for every call), and ``explicit`` called here, not through a helper
     # (an inlined one copies ``ps`` too): each costs 0.2 of the pendulum's sweep
@@ -162,6 +170,10 @@ def _design_share(a, M, T, sc, new, old, k):
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
     if sc.has_old:
         load(column.XO, old)
+    B, g, L = M.bodies, M.gravity, ps.WL.loc
+    data_gradient(B, M.flex, M.elements, g, new, sc.w_new, mu, a.G, a.GO, L)
+    if sc.has_old:
+        data_gradient(B, M.flex, M.elements, g, old, sc.w_old, mu, a.G, a.GO, L)
     for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
         v = a.UV[u]
         explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)

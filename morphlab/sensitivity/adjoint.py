@@ -11,7 +11,10 @@ steps SuperLU chooses a row order on) one by one. When the record of the whole r
 fit ``memory`` bytes, the run keeps checkpoints instead (the state at the start of every
 segment of steps) and the sweep recomputes each segment once more, last segment first. The
 design variables enter through the explicit parts of the pseudo-loads only, contracted with
-each step's adjoint vector ``μ`` inside the compiled sweep.
+each step's adjoint vector ``μ`` inside the compiled sweep; those that change the bodies'
+linear data alone (sections, materials, rigid bodies' masses) through the data gradient of
+the bodies' kinds, formed once a step for all of them and contracted with their ``dD/dp``
+after the sweep (:mod:`morphlab.kernels.ffrf_adjoint`).
 """
 
 from __future__ import annotations
@@ -22,7 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..compile import System
+from ..compile.design import layout
 from ..kernels import adjoint as kadj
+from ..kernels.ffrf_adjoint import FIELDS
 from ..kernels.histories import Histories
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.pseudo import Column
@@ -34,7 +39,7 @@ from ..solve.record import keep_record, release
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
-from .designs import CS_STEP, share_units
+from .designs import CS_STEP, bodies_linear, share_units
 from .direct import converged_blocks
 from .histories import to_store
 
@@ -218,12 +223,15 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     vjps = [response_vjp(k, responses[k], res0) for k in names]
     n, n_dof, n_con, m = sys0.n, sys0.n_dof, sys0.n_con, len(vjps)
     n_x = dq0.shape[1]
-    RO, RI = _touched(sys0, ps)
-    ps, UO, UI, UV = share_units(ps, RO, RI)
+    lumped = bodies_linear(ps, n_x)
+    RO, RI = _touched(sys0, ps, lumped)
+    GD, GO = _data_gradient(sys0, lumped, m)
+    PO, PP, PV = ps.PO, ps.PP, ps.PV
+    ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
                    np.zeros((n_dof, m)), np.zeros((n_con, m)),
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), np.zeros((n, m)),
+                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
                    Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
                    np.zeros((6, sys0.nnz)),
@@ -266,6 +274,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         k = lo - 1
     if hook.records:  # the next run's record is made of them (``solve/record.py``)
         release(hook.records)
+    for i in np.flatnonzero(lumped):  # their shares: <G, dD/dp_i>
+        a.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
     total = _time.perf_counter() - t0
     refined = a.refined[np.isfinite(a.refined)]
@@ -275,6 +285,16 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     values = {k: vj.value for k, vj in zip(names, vjps)}
     gradients = {k: grad[:, r] for r, k in enumerate(names)}
     return res0, values, gradients, timing, stats
+
+
+def _data_gradient(sys0: System, lumped: np.ndarray, m: int) -> tuple:
+    """``(GD, GO)``: the bodies' data gradient for ``m`` responses, zero, in the layout of the
+    flat design data (n_design, m), and the offsets of its fields
+    (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); no rows when no variable is
+    ``lumped``."""
+    slots = {(s.kind, s.field): s.start for s in layout(sys0.arrays)}
+    GO = np.array([slots[f] for f in FIELDS], dtype=np.int64)
+    return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO
 
 
 def _with_terms(a, vjps, sys0, lo: int, hi: int):
@@ -303,10 +323,11 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None) -> N
     kadj.finish(a, stp.M, stp.T, sc, stp.newton.csc, Dq, Dv, step.new, step.old, k)
 
 
-def _touched(sys0: System, ps) -> tuple:
+def _touched(sys0: System, ps, skip: np.ndarray | None = None) -> tuple:
     """The residual rows each variable's explicit part can write (``(RO (n_x + 1,), RI)``):
     found by evaluating it once at a random state with random time values, where every row
-    its parts write is nonzero."""
+    its parts write is nonzero; none for the variables set in ``skip`` (their shares come
+    from the data gradient)."""
     from ..compile.system import time_table
     from ..kernels.pseudo import explicit_column
     from ..kernels.types import Weights
@@ -333,6 +354,9 @@ def _touched(sys0: System, ps) -> tuple:
     c = Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype)
     rows = []
     for i in range(ps.PO.size - 1):
+        if skip is not None and skip[i]:
+            rows.append(np.zeros(0, np.int64))
+            continue
         c.R[:] = 0.0
         explicit_column(ps, sys0.arrays, T, i, x, w, 0, c)
         rows.append(np.flatnonzero(c.R != 0.0))

@@ -318,10 +318,22 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
                   forward, scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt)))
 
 
-def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray) -> tuple:
+def bodies_linear(ps: Pseudo, n_x: int) -> np.ndarray:
+    """Which of the ``n_x`` variables change the linear design data of the bodies' kinds
+    alone (the linear path only, no time values): (n_x,) bool. The adjoint takes their design
+    shares from the data gradient of those kinds (``morphlab.kernels.ffrf_adjoint``)."""
+    o, on = ps.OFF[:n_x], ps.OFFN[:n_x]
+    last = KIND_NAMES.index("elements") + 1  # the bodies' kinds are the first three
+    assert KIND_NAMES[:last] == ("bodies", "flex", "elements")
+    return ((on[:, -1] == on[:, 0]) & (ps.tl[:n_x] == 0) & (o[:, -1] > o[:, 0])
+            & (o[:, last] == o[:, -1]))
+
+
+def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray, skip=None) -> tuple:
     """Group the variables whose explicit parts can be evaluated together:
     ``(ps', UO, UI, UV)``, unit ``u`` evaluating variable ``UV[u]`` of ``ps'`` for its
-    members ``UI[UO[u]:UO[u + 1]]``.
+    members ``UI[UO[u]:UO[u + 1]]``; the variables set in ``skip`` ((n_x,) bool) are in no
+    unit (the caller forms their shares otherwise).
 
     The explicit part is linear in the design data on the linear path, so the variables that
     take that path alone (no perturbed path, no change of time values) and whose items,
@@ -336,6 +348,8 @@ def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray) -> tuple:
     groups: list = []  # [members, rows (set), items (set), flex (set)]
     single = []
     for i in range(n_x):
+        if skip is not None and skip[i]:
+            continue
         linear_only = (ps.OFFN[i, -1] == ps.OFFN[i, 0] and ps.tl[i] == 0
                        and ps.OFF[i, -1] > ps.OFF[i, 0])
         if not linear_only:
