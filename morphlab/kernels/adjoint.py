@@ -31,7 +31,7 @@ from numba.extending import overload
 from ._jit import inner, kernel
 from .assemble import matrix
 from .csc import residual, subtract_product
-from .ffrf_adjoint import data_gradient
+from .ffrf_adjoint import data_gradient, stiffness_share
 from .newton import Factors, solve_factored_transposed
 from .pseudo import explicit, load
 from .types import Level
@@ -67,7 +67,8 @@ class Sweep(NamedTuple):
     for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.designs.share_units``);
     the gradient ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no
     rows: none) with its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.
-    data_gradient`), accumulated;
+    data_gradient`), accumulated; the stiffness entries of its variables ``KO``, ``KX``,
+    ``KP``, ``KV`` (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`);
     buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column``
     (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
@@ -90,6 +91,10 @@ class Sweep(NamedTuple):
     grad: np.ndarray
     G: np.ndarray
     GO: np.ndarray
+    KO: np.ndarray
+    KX: np.ndarray
+    KP: np.ndarray
+    KV: np.ndarray
     zb: np.ndarray
     mu: np.ndarray
     r: np.ndarray
@@ -170,10 +175,12 @@ def _design_share(a, M, T, sc, new, old, k):
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
     if sc.has_old:
         load(column.XO, old)
-    B, g, L = M.bodies, M.gravity, ps.WL.loc
-    data_gradient(B, M.flex, M.elements, g, new, sc.w_new, mu, a.G, a.GO, L)
+    B, Fx, E, g, L = M.bodies, M.flex, M.elements, M.gravity, ps.WL.loc
+    data_gradient(B, Fx, E, g, new, sc.w_new, mu, a.G, a.GO, L)
+    stiffness_share(B, Fx, E, new, sc.w_new, mu, a.KO, a.KX, a.KP, a.KV, a.grad)
     if sc.has_old:
-        data_gradient(B, M.flex, M.elements, g, old, sc.w_old, mu, a.G, a.GO, L)
+        data_gradient(B, Fx, E, g, old, sc.w_old, mu, a.G, a.GO, L)
+        stiffness_share(B, Fx, E, old, sc.w_old, mu, a.KO, a.KX, a.KP, a.KV, a.grad)
     for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
         v = a.UV[u]
         explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)

@@ -7,8 +7,16 @@ FLEX` and :data:`~morphlab.kernels.ffrf.ELEMENTS`). So for a state ``x`` and a v
 there is one array ``G`` in the layout of those data with ``μ^T R(x; Z) = <G, Z>`` for every
 ``Z``: :func:`data_gradient` forms it, one pass over the bodies and elements whatever the
 number of design variables. The adjoint's design share of a variable that changes these data
-alone is then ``<G, dD/dp>``, summed over the steps (``docs/theory.md`` §7.4), instead of one
+alone is then ``<G, dD/dp>``, summed over the steps (``docs/theory.md`` §7.5), instead of one
 evaluation of the residual per variable and step.
+
+The stiffness is the exception. ``K_e`` annihilates the element's rigid motions, which make
+most of its coordinates ``q_j`` in a frame of many elements, so ``dK . sum_n μ_i q_j`` would
+be a sum of terms up to 1e4-1e5 times the result (measured on a 32-element single-frame
+pendulum): the gradient would lose four or five digits to round-off. Its share is taken per
+variable and step instead, over the stiffness entries the variable changes alone
+(:func:`stiffness_share`: ``w_f μ_e^T dK_e d_e``, each step's sum formed before it is added,
+as the residual forms ``K d`` first), which costs the variable's elements, not its frame.
 
 With ``f = w_m a_R - w_f g`` and the body's ``μ_R`` (2), ``μ_θ`` and ``μ_k`` of its flexible
 coordinates (``Ĩ = [[0, -1], [1, 0]]``, ``A = Rot(theta)``), the terms of ``G`` are::
@@ -21,7 +29,7 @@ coordinates (``Ĩ = [[0, -1], [1, 0]]``, ``A = Rot(theta)``), the terms of ``G``
     I_0ĨS,k  w_m (μ_θ a_k + θ'' μ_k)
     M_ij     (w_m μ_θ θ'' q_i + 2 w_f θ' μ_θ q'_i - w_f θ'^2 μ_i) q_j + w_m μ_i a_j
     S̃_ij     w_m (μ_θ a_i + θ'' μ_i) q_j + 2 w_f θ' μ_i q'_j
-    K_ij     w_f μ_i (q_j + beta_d q'_j)
+    K_ij     w_f μ_i (q_j + beta_d q'_j)   (per variable: :func:`stiffness_share`)
 
 (``k``: a flexible coordinate; ``i, j``: an element's DOFs, zero where the reference condition
 removes one). The stress maps do not enter the residual: their share is zero.
@@ -33,15 +41,18 @@ from ._jit import inner
 
 #: The fields of the data gradient, in the order of its offsets (:func:`data_gradient`).
 FIELDS = (("bodies", "scal"), ("flex", "IS"), ("flex", "I0S"), ("flex", "I0IS"),
-          ("elements", "M"), ("elements", "St"), ("elements", "K"))
+          ("elements", "M"), ("elements", "St"))
+#: The field of :func:`stiffness_share`.
+STIFFNESS = ("elements", "K")
 
 
 @inner
 def data_gradient(B, Fx, E, g, x, w, mu, G, GO, L):
     """Add ``d(μ[:, c]^T R)/dD`` to ``G[:, c]`` for every column ``c`` of ``mu`` (n, m): ``R``
     the bodies' residual share of the state ``x`` with weights ``w``, ``D`` their linear
-    design data (module docstring). ``B, Fx, E``: the tables of the bodies' kinds (their design
-    values are not read: only the damping and the topology), ``g`` (2,) the gravity; ``G``
+    design data but the stiffness (module docstring; its rows of ``G`` are not written).
+    ``B, Fx, E``: the tables of the bodies' kinds (their design values are not read: only the
+    topology), ``g`` (2,) the gravity; ``G``
     (n_design, m): in the layout of the flat design data, the field ``FIELDS[f]`` from row
     ``GO[f]`` (item after item, each row-major; no rows: nothing to form); ``L`` (>= 4, 6)
     scratch."""
@@ -52,7 +63,7 @@ def data_gradient(B, Fx, E, g, x, w, mu, G, GO, L):
     wm, wf = w.wm, w.wf
     m = mu.shape[1]
     q, v, a = x.q, x.v, x.a
-    o_sc, o_is, o_s, o_is2, o_m, o_st, o_k = GO[0], GO[1], GO[2], GO[3], GO[4], GO[5], GO[6]
+    o_sc, o_is, o_s, o_is2, o_m, o_st = GO[0], GO[1], GO[2], GO[3], GO[4], GO[5]
     for b in range(B.ref.shape[0]):
         iR0, iR1, ith = B.ref[b, 0], B.ref[b, 1], B.ref[b, 2]
         c, s = np.cos(q[ith]), np.sin(q[ith])
@@ -87,7 +98,7 @@ def data_gradient(B, Fx, E, g, x, w, mu, G, GO, L):
     for e in range(E.fdof.shape[0]):
         b = E.body[e]
         ith = B.ref[b, 2]
-        thd, tha, beta = v[ith], a[ith], B.damp[b]
+        thd, tha = v[ith], a[ith]
         for i in range(6):
             f = E.fdof[e, i]
             if f >= 0:
@@ -106,12 +117,33 @@ def data_gradient(B, Fx, E, g, x, w, mu, G, GO, L):
                 am = wm * mi
                 sq = wm * (mt * L[2, i] + tha * mi)
                 sv = 2.0 * wf * thd * mi
-                kd = wf * mi
                 row = 36 * e + 6 * i
                 for j in range(6):
                     G[o_m + row + j, r] += al * L[0, j] + am * L[2, j]
                     G[o_st + row + j, r] += sq * L[0, j] + sv * L[1, j]
-                    G[o_k + row + j, r] += kd * (L[0, j] + beta * L[1, j])
     for i in range(6):
         for j in range(4):
             L[j, i] = 0.0
+
+
+@inner
+def stiffness_share(B, Fx, E, x, w, mu, KO, KX, KP, KV, grad):
+    """``grad[KX[u], c] -= sum_t KV[t] d(μ[:, c]^T R)/dK_(KP[t])`` over ``KO[u] <= t <
+    KO[u + 1]`` for every unit ``u`` and column ``c`` (module docstring): ``KP`` positions in
+    the elements' stiffness data (``36 e + 6 i + j``), ``KV`` the variable's derivatives
+    there. Each unit's sum is formed before it is added."""
+    if B is None:  # the model has none of this kind
+        return
+    wf = w.wf
+    for u in range(KX.shape[0]):
+        for r in range(mu.shape[1]):
+            acc = 0.0 * mu[0, r]
+            for t in range(KO[u], KO[u + 1]):
+                p = KP[t]
+                e = p // 36
+                fi = E.fdof[e, (p % 36) // 6]
+                fj = E.fdof[e, p % 6]
+                if fi >= 0 and fj >= 0:
+                    dj = Fx.dof[fj]
+                    acc += KV[t] * mu[Fx.dof[fi], r] * (x.q[dj] + B.damp[E.body[e]] * x.v[dj])
+            grad[KX[u], r] -= wf * acc

@@ -27,7 +27,7 @@ import numpy as np
 from ..compile import System
 from ..compile.design import layout
 from ..kernels import adjoint as kadj
-from ..kernels.ffrf_adjoint import FIELDS
+from ..kernels.ffrf_adjoint import FIELDS, STIFFNESS
 from ..kernels.histories import Histories
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.pseudo import Column
@@ -225,13 +225,13 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     n_x = dq0.shape[1]
     lumped = bodies_linear(ps, n_x)
     RO, RI = _touched(sys0, ps, lumped)
-    GD, GO = _data_gradient(sys0, lumped, m)
+    GD, GO, K = _data_gradient(sys0, ps, lumped, m)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
                    np.zeros((n_dof, m)), np.zeros((n_con, m)),
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, np.zeros((n, m)),
+                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, *K, np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
                    Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
                    np.zeros((6, sys0.nnz)),
@@ -274,7 +274,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         k = lo - 1
     if hook.records:  # the next run's record is made of them (``solve/record.py``)
         release(hook.records)
-    for i in np.flatnonzero(lumped):  # their shares: <G, dD/dp_i>
+    for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in sweep)
         a.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
     total = _time.perf_counter() - t0
@@ -287,14 +287,27 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     return res0, values, gradients, timing, stats
 
 
-def _data_gradient(sys0: System, lumped: np.ndarray, m: int) -> tuple:
-    """``(GD, GO)``: the bodies' data gradient for ``m`` responses, zero, in the layout of the
-    flat design data (n_design, m), and the offsets of its fields
-    (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); no rows when no variable is
-    ``lumped``."""
-    slots = {(s.kind, s.field): s.start for s in layout(sys0.arrays)}
-    GO = np.array([slots[f] for f in FIELDS], dtype=np.int64)
-    return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO
+def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
+    """``(GD, GO, (KO, KX, KP, KV))``: the bodies' data gradient for ``m`` responses, zero, in
+    the layout of the flat design data (n_design, m; no rows when no variable is ``lumped``)
+    and the offsets of its fields (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); the
+    stiffness entries each lumped variable changes, for its share of them
+    (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`)."""
+    slots = {(s.kind, s.field): s for s in layout(sys0.arrays)}
+    GO = np.array([slots[f].start for f in FIELDS], dtype=np.int64)
+    k = slots[STIFFNESS]
+    KX, KP, KV = [], [np.zeros(0, np.int64)], [np.zeros(0)]
+    for i in np.flatnonzero(lumped):
+        pos, val = ps.PP[ps.PO[i]:ps.PO[i + 1]], ps.PV[ps.PO[i]:ps.PO[i + 1]]
+        sel = (pos >= k.start) & (pos < k.start + k.n * k.size)
+        if sel.any():
+            KX.append(i)
+            KP.append(pos[sel] - k.start)
+            KV.append(val[sel])
+    KO = np.zeros(len(KX) + 1, dtype=np.int64)
+    KO[1:] = np.cumsum([p.size for p in KP[1:]])
+    K = (KO, np.array(KX, dtype=np.int64), np.concatenate(KP), np.concatenate(KV))
+    return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO, K
 
 
 def _with_terms(a, vjps, sys0, lo: int, hi: int):
