@@ -31,7 +31,7 @@ def _residual_and_gradient(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W, mu, 
                            grad):
     ffrf.residual(B, Fx, E, g, x, w, bodies, elems, flex_on, R, W)
     data_gradient(B, Fx, E, g, x, w, mu, G, GO, W.loc)
-    stiffness_share(B, Fx, E, x, w, mu, K[0], K[1], K[2], K[3], grad)
+    stiffness_share(B, Fx, E, x, w, mu, K[0], K[1], K[2], K[3], grad, W.loc)
 
 
 @pytest.mark.parametrize("frames", [None, 2], ids=["frame-per-element", "two-frames"])
@@ -55,7 +55,8 @@ def test_data_gradient_is_the_transpose_of_the_residual(frames):
     GO = np.array([starts[f] for f in FIELDS], dtype=np.int64)
     k = next(sl for sl in layout(A) if (sl.kind, sl.field) == STIFFNESS)
     nk = k.n * k.size
-    K = (np.array([0, nk]), np.array([0]), np.arange(nk), Z[k.start:k.start + nk].copy())
+    K = (np.array([0, k.n]), np.array([0]), np.arange(k.n),
+         Z[k.start:k.start + nk].reshape(k.n, 36).copy())
     grad = np.zeros((1, m))
     n_b, n_f, n_e = (getattr(A, k)[0].shape[0] for k in BODY_KINDS)
     R = np.zeros(n + s.n_con)

@@ -67,8 +67,8 @@ class Sweep(NamedTuple):
     for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.designs.share_units``);
     the gradient ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no
     rows: none) with its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.
-    data_gradient`), accumulated; the stiffness entries of its variables ``KO``, ``KX``,
-    ``KP``, ``KV`` (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`);
+    data_gradient`), accumulated; the stiffness derivatives of its variables ``KO``, ``KX``,
+    ``KE``, ``KV`` (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`);
     buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column``
     (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
 
@@ -93,7 +93,7 @@ class Sweep(NamedTuple):
     GO: np.ndarray
     KO: np.ndarray
     KX: np.ndarray
-    KP: np.ndarray
+    KE: np.ndarray
     KV: np.ndarray
     zb: np.ndarray
     mu: np.ndarray
@@ -177,10 +177,10 @@ def _design_share(a, M, T, sc, new, old, k):
         load(column.XO, old)
     B, Fx, E, g, L = M.bodies, M.flex, M.elements, M.gravity, ps.WL.loc
     data_gradient(B, Fx, E, g, new, sc.w_new, mu, a.G, a.GO, L)
-    stiffness_share(B, Fx, E, new, sc.w_new, mu, a.KO, a.KX, a.KP, a.KV, a.grad)
+    stiffness_share(B, Fx, E, new, sc.w_new, mu, a.KO, a.KX, a.KE, a.KV, a.grad, L)
     if sc.has_old:
         data_gradient(B, Fx, E, g, old, sc.w_old, mu, a.G, a.GO, L)
-        stiffness_share(B, Fx, E, old, sc.w_old, mu, a.KO, a.KX, a.KP, a.KV, a.grad)
+        stiffness_share(B, Fx, E, old, sc.w_old, mu, a.KO, a.KX, a.KE, a.KV, a.grad, L)
     for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
         v = a.UV[u]
         explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)

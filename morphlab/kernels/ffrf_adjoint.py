@@ -15,8 +15,8 @@ most of its coordinates ``q_j`` in a frame of many elements, so ``dK . sum_n μ_
 be a sum of terms up to 1e4-1e5 times the result (measured on a 32-element single-frame
 pendulum): the gradient would lose four or five digits to round-off. Its share is taken per
 variable and step instead, over the stiffness entries the variable changes alone
-(:func:`stiffness_share`: ``w_f μ_e^T dK_e d_e``, each step's sum formed before it is added,
-as the residual forms ``K d`` first), which costs the variable's elements, not its frame.
+(:func:`stiffness_share`: ``w_f μ_e^T dK_e d_e``, ``dK_e d_e`` formed first, as the residual
+forms ``K d``), which costs the variable's elements, not its frame.
 
 With ``f = w_m a_R - w_f g`` and the body's ``μ_R`` (2), ``μ_θ`` and ``μ_k`` of its flexible
 coordinates (``Ĩ = [[0, -1], [1, 0]]``, ``A = Rot(theta)``), the terms of ``G`` are::
@@ -127,23 +127,30 @@ def data_gradient(B, Fx, E, g, x, w, mu, G, GO, L):
 
 
 @inner
-def stiffness_share(B, Fx, E, x, w, mu, KO, KX, KP, KV, grad):
-    """``grad[KX[u], c] -= sum_t KV[t] d(μ[:, c]^T R)/dK_(KP[t])`` over ``KO[u] <= t <
-    KO[u + 1]`` for every unit ``u`` and column ``c`` (module docstring): ``KP`` positions in
-    the elements' stiffness data (``36 e + 6 i + j``), ``KV`` the variable's derivatives
-    there. Each unit's sum is formed before it is added."""
+def stiffness_share(B, Fx, E, x, w, mu, KO, KX, KE, KV, grad, L):
+    """``grad[KX[u], c] -= w_f μ_e^T dK_e (q_e + beta_d q'_e)`` summed over the elements
+    ``e = KE[k]``, ``KO[u] <= k < KO[u + 1]``, for every unit ``u`` and column ``c`` of
+    ``mu`` (module docstring): ``KV[k]`` (36,) the variable's derivatives of element ``e``'s
+    stiffness (row-major; zero where it does not change it). ``L`` (>= 4, 6) scratch."""
     if B is None:  # the model has none of this kind
         return
     wf = w.wf
     for u in range(KX.shape[0]):
-        for r in range(mu.shape[1]):
-            acc = 0.0 * mu[0, r]
-            for t in range(KO[u], KO[u + 1]):
-                p = KP[t]
-                e = p // 36
-                fi = E.fdof[e, (p % 36) // 6]
-                fj = E.fdof[e, p % 6]
-                if fi >= 0 and fj >= 0:
-                    dj = Fx.dof[fj]
-                    acc += KV[t] * mu[Fx.dof[fi], r] * (x.q[dj] + B.damp[E.body[e]] * x.v[dj])
-            grad[KX[u], r] -= wf * acc
+        for k in range(KO[u], KO[u + 1]):
+            e = KE[k]
+            beta = B.damp[E.body[e]]
+            for j in range(6):
+                f = E.fdof[e, j]
+                L[0, j] = x.q[Fx.dof[f]] + beta * x.v[Fx.dof[f]] if f >= 0 else 0.0
+            for r in range(mu.shape[1]):
+                acc = 0.0 * mu[0, r]
+                for i in range(6):
+                    f = E.fdof[e, i]
+                    if f >= 0:
+                        row = 0.0 * acc
+                        for j in range(6):
+                            row += KV[k, 6 * i + j] * L[0, j]
+                        acc += mu[Fx.dof[f], r] * row
+                grad[KX[u], r] -= wf * acc
+    for j in range(6):
+        L[0, j] = 0.0

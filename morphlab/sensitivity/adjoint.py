@@ -291,22 +291,26 @@ def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
     """``(GD, GO, (KO, KX, KP, KV))``: the bodies' data gradient for ``m`` responses, zero, in
     the layout of the flat design data (n_design, m; no rows when no variable is ``lumped``)
     and the offsets of its fields (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); the
-    stiffness entries each lumped variable changes, for its share of them
+    stiffness derivatives of each lumped variable, element by element, for its share of them
     (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`)."""
     slots = {(s.kind, s.field): s for s in layout(sys0.arrays)}
     GO = np.array([slots[f].start for f in FIELDS], dtype=np.int64)
     k = slots[STIFFNESS]
-    KX, KP, KV = [], [np.zeros(0, np.int64)], [np.zeros(0)]
+    KX, KE, KV = [], [np.zeros(0, np.int64)], [np.zeros((0, 36))]
     for i in np.flatnonzero(lumped):
         pos, val = ps.PP[ps.PO[i]:ps.PO[i + 1]], ps.PV[ps.PO[i]:ps.PO[i + 1]]
         sel = (pos >= k.start) & (pos < k.start + k.n * k.size)
         if sel.any():
+            elements, at = np.unique((pos[sel] - k.start) // 36, return_inverse=True)
+            dK = np.zeros((elements.size, 36))
+            dK[at, (pos[sel] - k.start) % 36] = val[sel]
             KX.append(i)
-            KP.append(pos[sel] - k.start)
-            KV.append(val[sel])
+            KE.append(elements)
+            KV.append(dK)
     KO = np.zeros(len(KX) + 1, dtype=np.int64)
-    KO[1:] = np.cumsum([p.size for p in KP[1:]])
-    K = (KO, np.array(KX, dtype=np.int64), np.concatenate(KP), np.concatenate(KV))
+    KO[1:] = np.cumsum([e.size for e in KE[1:]])
+    K = (KO, np.array(KX, dtype=np.int64), np.concatenate(KE).astype(np.int64),
+         np.concatenate(KV))
     return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO, K
 
 
