@@ -237,13 +237,15 @@ class Adjoint(Strategy):
 class Auto(Strategy):
     """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
     response has a ``vjp`` and there are more than ``crossover`` design variables per response
-    (the direct method's solves grow with the variables, the adjoint's with the responses;
-    both evaluate each variable's explicit part at every step). The default is measured
-    (BENCHMARKS.md, case variables): the adjoint overtakes the direct method at about 19
-    variables for 3 responses; on the morphing study (5 variables, 3 responses) the direct
-    method is the faster, on the flexible pendulum (32 variables, 1 response) the adjoint."""
+    (the direct method's solves grow with the variables, the adjoint's with the responses; the
+    direct method evaluates each variable's explicit part at every step, the adjoint those of
+    the variables that are not sections or materials, which share one pass a step). The
+    default is measured (BENCHMARKS.md, cases morphing, variables and pendulum): with 3
+    responses the adjoint is as fast as the direct method at 1 variable and faster from 5 (the
+    morphing study's 5 variables: 1.62 against 1.76 primal runs), on the flexible pendulum
+    (32 variables, 1 response) 1.7 against 4.0."""
 
-    crossover: float = 6.0
+    crossover: float = 0.5
     direct: Direct = field(default_factory=Direct)
     adjoint: Adjoint = field(default_factory=Adjoint)
 
