@@ -225,13 +225,13 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     n_x = dq0.shape[1]
     lumped = bodies_linear(ps, n_x)
     RO, RI = _touched(sys0, ps, lumped)
-    GD, GO, K = _data_gradient(sys0, ps, lumped, m)
+    GD, GO, KS = _data_gradient(sys0, ps, lumped, m)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
                    np.zeros((n_dof, m)), np.zeros((n_con, m)),
                    *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, *K, np.zeros((n, m)),
+                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, *KS, np.zeros((n, m)),
                    np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
                    Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
                    np.zeros((6, sys0.nnz)),
@@ -288,7 +288,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
 
 
 def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
-    """``(GD, GO, (KO, KX, KP, KV))``: the bodies' data gradient for ``m`` responses, zero, in
+    """``(GD, GO, (KO, KX, KE, KV))``: the bodies' data gradient for ``m`` responses, zero, in
     the layout of the flat design data (n_design, m; no rows when no variable is ``lumped``)
     and the offsets of its fields (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); the
     stiffness derivatives of each lumped variable, element by element, for its share of them

@@ -341,8 +341,9 @@ def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray, skip=None) -> tuple:
     adjoint._touched`) are pairwise disjoint have the sum of their explicit parts, row by row
     each its own, from one evaluation with the union of their changes: a group of them is one
     more variable of ``ps'`` (appended after the ``n_x`` of ``ps``). The thickness variables of
-    a many-frame skin, one frame each, become one or two evaluations a step instead of one
-    each; variables that share a frame stay units of their own."""
+    a many-frame skin, one frame each, would become one or two evaluations a step instead of
+    one each (the adjoint passes them as ``skip``: the data gradient takes them); variables
+    that share a frame stay units of their own."""
     n_x = RO.size - 1
     n_k = ps.OFF.shape[1] - 1
     groups: list = []  # [members, rows (set), items (set), flex (set)]
