@@ -318,15 +318,24 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
                   forward, scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt)))
 
 
+#: The column of the parts' offsets after the bodies' kinds (the first three kinds).
+_BODY_KINDS_END = KIND_NAMES.index("elements") + 1
+assert KIND_NAMES[:_BODY_KINDS_END] == ("bodies", "flex", "elements")
+
+
+def linear_only(ps: Pseudo, n_x: int) -> np.ndarray:
+    """Which of the ``n_x`` variables take the linear path alone (parts there, none on the
+    perturbed path, no change of time values): (n_x,) bool."""
+    o, on = ps.OFF[:n_x], ps.OFFN[:n_x]
+    return (on[:, -1] == on[:, 0]) & (ps.tl[:n_x] == 0) & (o[:, -1] > o[:, 0])
+
+
 def bodies_linear(ps: Pseudo, n_x: int) -> np.ndarray:
     """Which of the ``n_x`` variables change the linear design data of the bodies' kinds
-    alone (the linear path only, no time values): (n_x,) bool. The adjoint takes their design
-    shares from the data gradient of those kinds (``morphlab.kernels.ffrf_adjoint``)."""
-    o, on = ps.OFF[:n_x], ps.OFFN[:n_x]
-    last = KIND_NAMES.index("elements") + 1  # the bodies' kinds are the first three
-    assert KIND_NAMES[:last] == ("bodies", "flex", "elements")
-    return ((on[:, -1] == on[:, 0]) & (ps.tl[:n_x] == 0) & (o[:, -1] > o[:, 0])
-            & (o[:, last] == o[:, -1]))
+    alone (:func:`linear_only`, parts of those kinds only): (n_x,) bool. The adjoint takes
+    their design shares from the data gradient of those kinds
+    (``morphlab.kernels.ffrf_adjoint``)."""
+    return linear_only(ps, n_x) & (ps.OFF[:n_x, _BODY_KINDS_END] == ps.OFF[:n_x, -1])
 
 
 def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray, skip=None) -> tuple:
@@ -348,12 +357,11 @@ def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray, skip=None) -> tuple:
     n_k = ps.OFF.shape[1] - 1
     groups: list = []  # [members, rows (set), items (set), flex (set)]
     single = []
+    alone = linear_only(ps, n_x)
     for i in range(n_x):
         if skip is not None and skip[i]:
             continue
-        linear_only = (ps.OFFN[i, -1] == ps.OFFN[i, 0] and ps.tl[i] == 0
-                       and ps.OFF[i, -1] > ps.OFF[i, 0])
-        if not linear_only:
+        if not alone[i]:
             single.append(i)
             continue
         rows = set(RI[RO[i]:RO[i + 1]].tolist())
