@@ -230,13 +230,14 @@ def _element_section(beam, n_el: int) -> np.ndarray:
     return np.stack([np.broadcast_to(np.asarray(v), (n_el,)) for v in values])
 
 
-def section_rows(body: Beam, dt, like, starts: dict) -> dict:
-    """The rows of ``body`` that its section sets, ``{table: {field: values}}``, for a copy
-    of its compile in the system ``like`` (:mod:`morphlab.compile.record`) whose rows begin at
-    ``starts[table]``: each frame's invariants (``bodies.scal``; ``flex.IS, I0S, I0IS``) and
-    its elements' matrices and stress maps (``elements.M, St, K, B``). The frames whose
-    elements' section changed are computed as :func:`compile_beam` computes them (each
-    element's data depend on its own section and nodes only); the others are ``like``'s."""
+def section_blocks(body: Beam, dt, like, starts: dict) -> list:
+    """The rows of ``body`` that a new section changes, for a copy of its compile in the
+    system ``like`` (:mod:`morphlab.compile.record`) whose rows begin at ``starts[table]``:
+    ``[(table, field, first row, values)]`` over the frames holding an element whose section
+    changed, each computed as :func:`compile_beam` computes it (each element's data depend on
+    its own section and nodes only): the frame's invariants (``bodies.scal``; ``flex.IS, I0S,
+    I0IS``) and its elements' matrices and stress maps (``elements.M, St, K, B``). Rows are
+    absolute (rows of ``like``'s tables); the other frames' rows are ``like``'s."""
     specs = specs_of(body)
     n_el = body.nodes.shape[0] - 1
     before = SimpleNamespace(**like.record[body.name].inputs)
@@ -244,6 +245,30 @@ def section_rows(body: Beam, dt, like, starts: dict) -> dict:
     # the frames holding a changed element (frame f holds elements first_f .. first_{f+1} - 1)
     first = np.array([spec.first for spec in specs])
     redo = np.unique(np.searchsorted(first, np.flatnonzero(changed), side="right") - 1).tolist()
+    bodies, elements = like.table("bodies"), like.table("elements")
+    b0, e0 = starts["bodies"], starts["elements"]
+    out = []
+    for f, (scal, IS, I0S, I0IS, Me, Se, Ke, Be) in zip(
+            redo, _element_arrays(body, [specs[f] for f in redo], dt,
+                                  like.record[body.name].units)):
+        spec = specs[f]
+        f0, f1 = (int(i) for i in bodies.flex[b0 + f])
+        efd = elements.fdof[e0 + spec.first:e0 + spec.last]
+        out.append(("bodies", "scal", b0 + f, scal[None]))
+        for key, value in zip(("IS", "I0S", "I0IS"),
+                              _frame_invariants(efd, f0, f1 - f0, IS, I0S, I0IS, dt)):
+            out.append(("flex", key, f0, value))
+        for key, value in zip(("M", "St", "K", "B"), (Me, Se, Ke, Be)):
+            out.append(("elements", key, e0 + spec.first, value))
+    return out
+
+
+def section_rows(body: Beam, dt, like, starts: dict) -> dict:
+    """All rows of ``body`` that its section sets, ``{table: {field: values}}``, for a copy
+    of its compile in the system ``like`` whose rows begin at ``starts[table]``:
+    ``like``'s rows with those of :func:`section_blocks` written over them."""
+    specs = specs_of(body)
+    n_el = body.nodes.shape[0] - 1
     bodies, flex, elements = (like.table(k) for k in ("bodies", "flex", "elements"))
     b0, x0, e0 = starts["bodies"], starts["flex"], starts["elements"]
     x1 = int(bodies.flex[b0 + len(specs) - 1, 1])
@@ -254,18 +279,9 @@ def section_rows(body: Beam, dt, like, starts: dict) -> dict:
     out = {"bodies": {"scal": rows(bodies, "scal", b0, b0 + len(specs))},
            "flex": {k: rows(flex, k, x0, x1) for k in ("IS", "I0S", "I0IS")},
            "elements": {k: rows(elements, k, e0, e0 + n_el) for k in ("M", "St", "K", "B")}}
-    for f, (scal, IS, I0S, I0IS, Me, Se, Ke, Be) in zip(
-            redo, _element_arrays(body, [specs[f] for f in redo], dt,
-                                  like.record[body.name].units)):
-        spec = specs[f]
-        f0, f1 = (int(i) for i in bodies.flex[b0 + f])
-        efd = elements.fdof[e0 + spec.first:e0 + spec.last]
-        out["bodies"]["scal"][f] = scal
-        for key, value in zip(("IS", "I0S", "I0IS"),
-                              _frame_invariants(efd, f0, f1 - f0, IS, I0S, I0IS, dt)):
-            out["flex"][key][f0 - x0:f1 - x0] = value
-        for key, value in zip(("M", "St", "K", "B"), (Me, Se, Ke, Be)):
-            out["elements"][key][spec.first:spec.last] = value
+    for table, name, row, values in section_blocks(body, dt, like, starts):
+        lo = row - starts[table]
+        out[table][name][lo:lo + values.shape[0]] = values
     return out
 
 

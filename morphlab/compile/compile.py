@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,10 +22,10 @@ from ..model import Beam, Model
 from ..model.items import COLLECTIONS
 from ..model.profiles import Profile
 from . import bodies, forces, joints, loads  # noqa: F401 - they register the compile functions
-from .bodies import section_rows
+from .bodies import section_blocks, section_rows
 from .builder import Builder, compile_item
 from .checks import check_initial, check_rank
-from .design import flatten, layout, views
+from .design import flatten, views
 from .initial import initial_velocities, needs_initial_velocities
 from .pattern import newton_pattern
 from .record import SECTION, changed_inputs, counts, entry, inputs, replay, same_item, same_value
@@ -83,18 +84,31 @@ def _same_topology(arrays, n_dof, n_con, like: System) -> bool:
     return True
 
 
-def _section_copy(model: Model, like: System, dt) -> System | None:
-    """``model`` compiled as a copy of ``like`` where it differs from ``like.model`` in the
-    sections of beams alone (:data:`~morphlab.compile.record.SECTION`; the thickness variables
-    of a sensitivity run): ``like``'s design data with the changed beams' rows computed again
-    (:func:`~morphlab.compile.bodies.section_rows`), everything else ``like``'s. None where that
-    does not hold (another item or a setting of the model changed, a beam's nodes or frames,
-    ``like`` complex and ``dt`` real, or a moving start: initial velocities computed from the
-    drives are of least kinetic energy, which the beams' mass enters).
+class SectionDelta(NamedTuple):
+    """A design that differs from a compiled system in the sections of beams alone
+    (:func:`section_delta`): its ``model``, ``dtype``, the ``positions`` of the flat design
+    data the changed frames' rows hold and their new ``values`` there (positions the new
+    section leaves equal included), and the beams' records in the new design."""
 
-    The copy equals a compile from scratch bit for bit (``tests/test_compile_record.py``):
-    a section enters the element data only, the DOFs, rows, pattern, time data and checks
-    (which read the geometry) are ``like``'s."""
+    model: Model
+    dtype: np.dtype
+    positions: np.ndarray
+    values: np.ndarray
+    record: dict
+
+
+def section_delta(model: Model, like: System, dt) -> SectionDelta | None:
+    """``model`` as a change of ``like`` where it differs from ``like.model`` in the sections
+    of beams alone (:data:`~morphlab.compile.record.SECTION`; the thickness variables of a
+    sensitivity run): the rows of the frames whose elements' section changed, computed again
+    (:func:`~morphlab.compile.bodies.section_blocks`), everything else ``like``'s. None where
+    that does not hold (another item or a setting of the model changed, a beam's nodes or
+    frames, ``like`` complex and ``dt`` real, or a moving start: initial velocities computed
+    from the drives are of least kinetic energy, which the beams' mass enters).
+
+    A section enters the element data only; the DOFs, rows, pattern, time data and checks
+    (which read the geometry) are ``like``'s, so :func:`section_system` of the delta equals a
+    compile from scratch bit for bit (``tests/test_compile_record.py``)."""
     if not like.record or (like.dtype.kind == "c" and dt.kind != "c") or np.any(like.v0 != 0):
         return None
     # the model's own settings (the gravity; any a later version adds), its lists aside
@@ -116,21 +130,30 @@ def _section_copy(model: Model, like: System, dt) -> System | None:
                 changed.append((a, rec))
         elif not same_item(a, b):
             return None
-    design = like.design.astype(dt)
-    slots = {(s.kind, s.field): s for s in layout(like.arrays)}
+    slots = {(s.kind, s.field): s for s in like.slots}
     record = dict(like.record)
+    positions, values = [np.zeros(0, np.int64)], [np.zeros(0, dt)]
     for beam, rec in changed:
         starts = dict(zip(KIND_NAMES, rec.before[1]))
-        for table, fields in section_rows(beam, dt, like, starts).items():
-            for name, values in fields.items():
-                s = slots[(table, name)]
-                at = s.start + starts[table] * s.size
-                design[at:at + values.size] = values.ravel()
+        for table, name, row, block in section_blocks(beam, dt, like, starts):
+            s = slots[(table, name)]
+            positions.append(s.start + row * s.size + np.arange(block.size))
+            values.append(block.ravel())
         record[beam.name] = rec._replace(inputs=inputs(beam))
+    return SectionDelta(model, dt, np.concatenate(positions),
+                        np.concatenate(values).astype(dt, copy=False), record)
+
+
+def section_system(like: System, delta: SectionDelta) -> System:
+    """The system of the design ``delta`` (:func:`section_delta`): a copy of ``like`` with the
+    delta's design data, everything else shared."""
+    dt = delta.dtype
+    design = like.design.astype(dt)
+    design[delta.positions] = delta.values
     return dataclasses.replace(
-        like, model=model, dtype=dt, q0=like.q0.astype(dt), v0=like.v0.astype(dt),
+        like, model=delta.model, dtype=dt, q0=like.q0.astype(dt), v0=like.v0.astype(dt),
         arrays=views(like.arrays_as(dt), design), design=design,
-        time_base={k: v.astype(dt) for k, v in like.time_base.items()}, record=record)
+        time_base={k: v.astype(dt) for k, v in like.time_base.items()}, record=delta.record)
 
 
 def compile_model(model: Model, dtype=None, *, like: System | None = None,
@@ -166,8 +189,9 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     if not model.bodies:
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
-    copy = None if like is None else _section_copy(model, like, dt)
-    if copy is not None:
+    delta = None if like is None else section_delta(model, like, dt)
+    if delta is not None:
+        copy = section_system(like, delta)
         if on_built is not None:
             on_built(copy)
         return copy

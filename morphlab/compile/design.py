@@ -76,10 +76,11 @@ def views(arrays: SystemArrays, D: np.ndarray, fields=None) -> SystemArrays:
     return out._replace(**{k: getattr(out, k)._replace(**v) for k, v in tables.items()})
 
 
-def owners(arrays: SystemArrays, positions: np.ndarray) -> list[tuple]:
+def owners(arrays: SystemArrays, positions: np.ndarray, slots=None) -> list[tuple]:
     """``(kind, field, items)`` of the slots that hold ``positions`` of the flat vector:
-    one entry per slot touched, ``items`` the distinct items (int64, sorted) of it."""
-    slots = layout(arrays)
+    one entry per slot touched, ``items`` the distinct items (int64, sorted) of it
+    (``slots``: :func:`layout` of ``arrays``, if at hand)."""
+    slots = layout(arrays) if slots is None else slots
     starts = np.array([s.start for s in slots])
     pos = np.asarray(positions, dtype=np.int64)
     which = np.searchsorted(starts, pos, side="right") - 1

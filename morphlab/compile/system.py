@@ -4,6 +4,7 @@ the user side, and the time-dependent data (profiles evaluated at the times of a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -17,6 +18,7 @@ from ..kernels.schema import KINDS
 from ..kernels.system import KIND_NAMES, TIMED_NAMES, SystemArrays, Times, all_parts
 from ..kernels.types import Level, Weights
 from ..model import Model
+from .design import layout
 
 
 @dataclass
@@ -150,6 +152,12 @@ class System:
     def unknown_names(self) -> list[str]:
         """Name of each equation / unknown of a step: the DOFs, then ``"constraint <row>"``."""
         return self.dof_names + [f"constraint {c}" for c in self.con_names]
+
+    @cached_property
+    def slots(self) -> list:
+        """Where each design field lies in :attr:`design` (:func:`~morphlab.compile.design.
+        layout` of :attr:`arrays`, formed once)."""
+        return layout(self.arrays)
 
     def table(self, kind: str):
         """The arrays of ``kind`` (None if the model has none)."""

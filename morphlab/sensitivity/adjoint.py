@@ -33,13 +33,13 @@ from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.pseudo import Column
 from ..kernels.steps import run_steps
 from ..kernels.types import Level
-from ..results.gradients import ResponseVJP, response_vjp, system_data
+from ..results.gradients import ResponseVJP, response_vjp
 from ..solve.record import fits as _fits
 from ..solve.record import keep_record, release
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
-from .designs import CS_STEP, bodies_linear, share_units
+from .designs import bodies_linear, share_units
 from .direct import converged_blocks
 from .histories import to_store
 
@@ -193,25 +193,28 @@ def _terms(vjps: list[ResponseVJP], ns: np.ndarray, s: System) -> tuple:
     return tuple(out)
 
 
-def _data_terms(vjps: list[ResponseVJP], complex_systems: list) -> np.ndarray:
+def _data_terms(vjps: list[ResponseVJP], sys0: System, changes: list) -> np.ndarray:
     """The responses' own derivatives through the system data they read, mapped to the
-    variables with the data's complex-step derivatives (n_x, m)."""
-    out = np.zeros((len(complex_systems), len(vjps)))
+    variables with the data's complex-step derivatives (n_x, m); ``changes``: the variables'
+    :class:`~morphlab.sensitivity.designs.Change` (:meth:`~morphlab.sensitivity.designs.
+    Change.data_derivative`)."""
+    out = np.zeros((len(changes), len(vjps)))
     for r, vj in enumerate(vjps):
         for key, g in vj.data.items():
-            for i, cs in enumerate(complex_systems):
-                out[i, r] += np.sum(np.real(g) * np.imag(system_data(cs, key))) / CS_STEP
+            for i, ch in enumerate(changes):
+                out[i, r] += np.sum(np.real(g) * ch.data_derivative(sys0, key))
     return out
 
 
 def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
-                complex_systems: list, *, reuse: bool = True, refine: int = 1,
+                changes: list, *, reuse: bool = True, refine: int = 1,
                 memory: int = 2**30, progress=False):
     """The primal run, the responses' gradients and the backward sweep (module docstring).
 
     ``ps``: the pseudo-load data (:class:`~morphlab.kernels.pseudo.Pseudo`) with the residual
     rows each variable touches, ``dq0``, ``dv0`` (n_dof, n_x): the derivatives of the initial
-    state, ``complex_systems``: the variables' complex-step systems (for the responses' data
+    state, ``changes``: the variables' complex-step changes
+    (:class:`~morphlab.sensitivity.designs.Change`; their systems for the responses' data
     terms). Returns ``(result, values, gradients, timing, stats)`` with ``values[name]`` and
     ``gradients[name]`` (n_x,) in the order of the variables."""
     hook = AdjointHook(sys0, settings.n_steps, memory, reuse)
@@ -276,7 +279,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         release(hook.records)
     for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in sweep)
         a.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
-    grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, complex_systems)
+    grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, sys0, changes)
     total = _time.perf_counter() - t0
     refined = a.refined[np.isfinite(a.refined)]
     stats = {"n_factorizations": res0.n_factorizations, "segment_steps": hook.segment,

@@ -13,11 +13,14 @@ derivatives of the time values and of the initial state.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
+from dataclasses import field as _field
+from functools import cached_property
 
 import numpy as np
 
 from ..compile import System, compile_model
+from ..compile.compile import SectionDelta, section_delta, section_system
 from ..compile.design import owners, views
 from ..compile.system import time_table
 from ..errors import MorphlabError, SensitivityError
@@ -26,6 +29,7 @@ from ..kernels.pseudo import Pseudo
 from ..kernels.schema import DESIGN, KINDS, TIME, TOPOLOGY
 from ..kernels.system import KIND_NAMES, TIMED_NAMES, Times, pack_parts
 from ..model import Model
+from ..results.gradients import system_data
 
 #: The complex step (Martins, Sturdza & Alonso 2003): exact to round-off for ``h`` this small.
 CS_STEP = 1e-30
@@ -84,24 +88,31 @@ def check_same_layout(a: System, b: System, name: str) -> None:
                     "where it is")
 
 
+def perturbed_model(build: Callable, p0: dict, name: str, delta) -> Model:
+    """``build(p0 + delta e_name)``."""
+    p = dict(p0)
+    p[name] = p0[name] + delta
+    return call_build(build, p, f"with {name!r} perturbed by {delta!r}")
+
+
 def compile_perturbed(build: Callable, p0: dict, name: str, delta, sys0: System) -> System:
     """``build(p0 + delta e_name)`` compiled like ``sys0`` (complex128 for a complex
     ``delta``), its structure checked."""
-    p = dict(p0)
-    p[name] = p0[name] + delta
     dtype = np.complex128 if isinstance(delta, complex) else np.float64
-    sys_p = compile_model(call_build(build, p, f"with {name!r} perturbed by {delta!r}"),
-                          dtype=dtype, like=sys0)
+    sys_p = compile_model(perturbed_model(build, p0, name, delta), dtype=dtype, like=sys0)
     check_same_layout(sys0, sys_p, name)
     return sys_p
 
 
-class Change(NamedTuple):
+@dataclass(eq=False)
+class Change:
     """What one perturbed design changes against the nominal: ``positions`` of the flat design
     data and there the derivative ``derivative`` (real) and the perturbed ``values``; the
     derivatives of the time values ``time`` (a :data:`~morphlab.kernels.system.Times` of
     (n_t, n, ...) arrays, None where nothing changes) and of the initial state ``dq0``,
-    ``dv0``; ``system``: the perturbed system."""
+    ``dv0``; ``system``: the perturbed system, built when first read where the design differs
+    from the nominal in beams' sections alone (``make``, :func:`section_change`; then
+    ``sections`` is set)."""
 
     positions: np.ndarray
     derivative: np.ndarray
@@ -109,7 +120,28 @@ class Change(NamedTuple):
     time: Times | None
     dq0: np.ndarray
     dv0: np.ndarray
-    system: System
+    make: Callable[[], System] = _field(repr=False)
+    sections: bool = False
+
+    @cached_property
+    def system(self) -> System:
+        return self.make()
+
+    def data_derivative(self, sys0: System, key: str) -> np.ndarray:
+        """The complex-step derivative of the system data ``key`` (keyed as
+        :func:`~morphlab.results.gradients.system_data`; ``sys0`` the nominal system), in its
+        shape. A sections-alone change has it without its system: the design field's
+        positions it changes, and zero for the rest (geometry, initial state)."""
+        if not self.sections:
+            return np.imag(system_data(self.system, key)) / CS_STEP
+        out = np.zeros(np.shape(system_data(sys0, key)))
+        kind, _, name = key.partition(".")
+        slot = next((s for s in sys0.slots if (s.kind, s.field) == (kind, name)),
+                    None)
+        if slot is not None:
+            at = (self.positions >= slot.start) & (self.positions < slot.start + out.size)
+            out.reshape(-1)[self.positions[at] - slot.start] = self.derivative[at]
+        return out
 
 
 def change_of(sys0: System, sys_p: System, pert, T0: Times, times: np.ndarray) -> Change:
@@ -131,7 +163,26 @@ def change_of(sys0: System, sys_p: System, pert, T0: Times, times: np.ndarray) -
                            type(a)(*(deriv(x, y)[0] for x, y in zip(a, b)))
                            for a, b in zip(Tp, T0)))
     return Change(pos, d[pos], sys_p.design[pos], time, deriv(sys_p.q0, sys0.q0),
-                  deriv(sys_p.v0, sys0.v0), sys_p)
+                  deriv(sys_p.v0, sys0.v0), lambda: sys_p)
+
+
+def section_change(sys0: System, delta: SectionDelta, pert) -> Change:
+    """The :class:`Change` of a perturbed design that differs from the nominal in beams'
+    sections alone (``delta``: :func:`~morphlab.compile.compile.section_delta`; ``pert``: the
+    perturbation): the changed frames' rows only, no copy of the system (built when
+    ``system`` is first read); the structure, time values and initial state are the
+    nominal's."""
+    v0 = sys0.design[delta.positions]
+    if np.iscomplexobj(pert):
+        d = np.imag(delta.values) / CS_STEP
+    else:
+        d = (np.real(delta.values) - np.real(v0)) / pert
+    keep = d != 0.0
+    pos = delta.positions[keep]
+    order = np.argsort(pos, kind="stable")
+    return Change(pos[order], d[keep][order], delta.values[keep][order], None,
+                  np.zeros(sys0.n_dof), np.zeros(sys0.n_dof), lambda: section_system(sys0, delta),
+                  sections=True)
 
 
 def same_time_inputs(sys0: System, sys_p: System) -> bool:
@@ -157,11 +208,20 @@ def changes(build: Callable, p0: dict, names: list[str], sys0: System, times: np
             steps: dict | None = None) -> list[Change]:
     """The :class:`Change` of every variable: complex step (``steps`` None) or forward
     differences with ``steps``; a variable ``build`` does not use raises."""
-    T0 = time_table(sys0, times)
+    T0 = None
     out = []
     for v in names:
         delta = 1j * CS_STEP if steps is None else steps[v]
-        ch = change_of(sys0, compile_perturbed(build, p0, v, delta, sys0), delta, T0, times)
+        dtype = np.dtype(np.complex128 if steps is None else np.float64)
+        model = perturbed_model(build, p0, v, delta)
+        sections = section_delta(model, sys0, dtype)
+        if sections is not None:  # sections alone: the changed rows, no compile
+            ch = section_change(sys0, sections, delta)
+        else:
+            sys_p = compile_model(model, dtype=dtype, like=sys0)
+            check_same_layout(sys0, sys_p, v)
+            T0 = time_table(sys0, times) if T0 is None else T0
+            ch = change_of(sys0, sys_p, delta, T0, times)
         if not (ch.positions.size or ch.time is not None or np.any(ch.dq0)
                 or np.any(ch.dv0)):
             raise SensitivityError(
@@ -183,7 +243,7 @@ def _items(sys0: System, ch: Change) -> tuple[dict, dict, set]:
     linear_fields = _linear_fields()
     items: dict = {}
     linear: dict = {}
-    for kind, field, rows in owners(sys0.arrays, ch.positions):
+    for kind, field, rows in owners(sys0.arrays, ch.positions, sys0.slots):
         if kind is None:  # the gravity: every body and coordinate, along the perturbed path
             for k in ("bodies", "flex", "elements"):
                 items.setdefault(k, set()).update(range(sys0.count(k)))

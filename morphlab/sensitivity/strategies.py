@@ -228,8 +228,8 @@ class Adjoint(Strategy):
         dq0 = np.stack([ch.dq0 for ch in cs], axis=1)
         dv0 = np.stack([ch.dv0 for ch in cs], axis=1)
         res0, values, gradients, timing, stats = adjoint_run(
-            setup.sys0, setup.settings, setup.responses, ps, dq0, dv0, setup.complex_systems,
-            reuse=self.reuse, refine=self.refine, memory=self.memory, progress=setup.progress)
+            setup.sys0, setup.settings, setup.responses, ps, dq0, dv0, cs, reuse=self.reuse,
+            refine=self.refine, memory=self.memory, progress=setup.progress)
         return Run(res0, [], {}, timing, stats, values, gradients)
 
 
