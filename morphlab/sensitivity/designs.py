@@ -156,12 +156,12 @@ def change_of(sys0: System, sys_p: System, pert, T0: Times, times: np.ndarray) -
     pos = np.flatnonzero(d != 0.0).astype(np.int64)
     time = None
     if not same_time_inputs(sys0, sys_p):  # else the time values are equal at every time
+        # a kind whose values are equal at every time has no derivative (None)
         Tp = time_table(sys_p, times)
-        if any(a is not None and any(not np.array_equal(x, y) for x, y in zip(a, b))
-               for a, b in zip(Tp, T0)):
-            time = Times(*(None if a is None else
-                           type(a)(*(deriv(x, y)[0] for x, y in zip(a, b)))
-                           for a, b in zip(Tp, T0)))
+        kinds = [None if a is None or all(np.array_equal(x, y) for x, y in zip(a, b)) else
+                 type(a)(*(deriv(x, y)[0] for x, y in zip(a, b))) for a, b in zip(Tp, T0)]
+        if any(k is not None for k in kinds):
+            time = Times(*kinds)
     return Change(pos, d[pos], sys_p.design[pos], time, deriv(sys_p.q0, sys0.q0),
                   deriv(sys_p.v0, sys0.v0), lambda: sys_p)
 
