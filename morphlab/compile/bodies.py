@@ -227,7 +227,10 @@ def _element_section(beam, n_el: int) -> np.ndarray:
     fibre distance (``beam``: a Beam, or any object with its section attributes)."""
     values = (beam.rho * beam.area, beam.E * beam.area, beam.E * beam.second_moment, beam.E,
               beam.fibre)
-    return np.stack([np.broadcast_to(np.asarray(v), (n_el,)) for v in values])
+    out = np.empty((5, n_el), dtype=np.result_type(np.float64, *values))
+    for row, v in zip(out, values):
+        row[:] = v  # a scalar or one value per element
+    return out
 
 
 def section_blocks(body: Beam, dt, like, starts: dict) -> list:
