@@ -13,8 +13,7 @@ import pytest
 import scipy.sparse as sp
 
 from morphlab.kernels.csc import residual
-from morphlab.kernels.direct import Direct, store
-from morphlab.kernels.pseudo import Column
+from morphlab.kernels.direct import store
 from morphlab.solve.scheme import (
     INITIAL,
     GeneralizedAlpha,
@@ -36,7 +35,7 @@ def test_update_is_the_primal_newmark_update(scheme):
     DQ, DV, DA, DG, DLAM = (np.ascontiguousarray(np.moveaxis(h, -1, 0)) for h in hist)
     x = rng.normal(size=(n_dof + n_con, n_x))
     scale = 3.5
-    store(_direct(DQ, DV, DA, DG, DLAM), _scheme(coef, scale), x, 2)
+    store(DQ, DV, DA, DG, DLAM, _scheme(coef, scale), x, 2)
     DQ, DV, DA, DG, DLAM = (np.moveaxis(h, 0, -1) for h in (DQ, DV, DA, DG, DLAM))
     q, v, a, g, _ = (h[1] for h in hist)
     qh, vh = newmark_predict(coef, q, v, a, g)
@@ -57,7 +56,7 @@ def test_initial_entry_sets_accelerations_and_multipliers_only():
     DQ[:, 0] = rng.normal(size=(n_x, n_dof))
     q0 = DQ[:, 0].copy()
     x = rng.normal(size=(n_dof + n_con, n_x))
-    store(_direct(DQ, DV, DA, DG, DLAM), _scheme(INITIAL, 2.0), x, 0)
+    store(DQ, DV, DA, DG, DLAM, _scheme(INITIAL, 2.0), x, 0)
     np.testing.assert_array_equal(DA[:, 0], x[:n_dof].T)
     np.testing.assert_array_equal(DG[:, 0], x[:n_dof].T)
     np.testing.assert_array_equal(DLAM[:, 0], 2.0 * x[n_dof:].T)
@@ -95,20 +94,11 @@ def test_two_level_buffer_of_the_algorithmic_acceleration():
     ring[3] = np.ascontiguousarray(np.stack([full[3][:, 4], full[3][:, 3]], axis=1))
     # levels 4, 3 stored at 4 % 2, 3 % 2
     x = rng.normal(size=(n_dof + n_con, n_x))
-    store(_direct(*full), _scheme(coef, 1.5), x, 4)
-    store(_direct(*ring), _scheme(coef, 1.5), x, 4)
+    store(*full, _scheme(coef, 1.5), x, 4)
+    store(*ring, _scheme(coef, 1.5), x, 4)
     np.testing.assert_array_equal(ring[3][:, 0], full[3][:, 4])  # new level written at 4 % 2
     np.testing.assert_array_equal(ring[0][:, 4], full[0][:, 4])
     np.testing.assert_array_equal(ring[1][:, 4], full[1][:, 4])
-
-
-def _direct(DQ, DV, DA, DG, DLAM):
-    """A :class:`~morphlab.kernels.direct.Direct` holding the histories (the rest unused by
-    ``store``)."""
-    none = np.zeros(0)
-    return Direct(DQ, DV, DA, DG, DLAM, None, none.reshape(0, 0), none.reshape(0, 0),
-                  none.reshape(0, 0), none.reshape(0, 0), Column.zeros(0, 0, 0, np.float64),
-                  none.reshape(0, 0), none, None)
 
 
 def _scheme(coef, scale):

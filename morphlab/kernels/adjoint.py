@@ -196,32 +196,35 @@ def _design_share(a, M, T, sc, new, old, k):
 
 
 @kernel
-def begin(a, sc, k):
+def begin(Bq, Bv, Ba, Bg, Bl, Hq, Hv, Ha, Hl, h0, zb, mu, sc, k):
     """Add the responses' terms at time index ``k`` to the adjoint state and form ``z̄`` into
-    ``a.zb`` and ``a.mu`` (which the caller then solves in place with ``J^-T``)."""
-    n_dof = a.Bq.shape[0]
-    n_con = a.Bl.shape[0]
-    m = a.Bq.shape[1]
+    ``zb`` and ``mu`` (which the caller then solves in place with ``J^-T``); the arguments are
+    the fields of :class:`Sweep` of those names. They are passed, not the whole
+    :class:`Sweep`: Python calls this kernel, and unboxing ``Sweep`` (its pseudo-load data)
+    in the call's wrapper costs about a second of compile."""
+    n_dof = Bq.shape[0]
+    n_con = Bl.shape[0]
+    m = Bq.shape[1]
     bh2, gh, ga = sc.pc[5], sc.pc[6], sc.upd[0]
-    h = k - a.h0[0]
-    if 0 <= h < a.Hq.shape[0]:
+    h = k - h0[0]
+    if 0 <= h < Hq.shape[0]:
         for i in range(n_dof):
             for c in range(m):
-                a.Bq[i, c] += a.Hq[h, i, c]
-                a.Bv[i, c] += a.Hv[h, i, c]
-                a.Ba[i, c] += a.Ha[h, i, c]
+                Bq[i, c] += Hq[h, i, c]
+                Bv[i, c] += Hv[h, i, c]
+                Ba[i, c] += Ha[h, i, c]
         for i in range(n_con):
             for c in range(m):
-                a.Bl[i, c] += a.Hl[h, i, c]
+                Bl[i, c] += Hl[h, i, c]
     for i in range(n_dof):
         for c in range(m):
-            a.zb[i, c] = a.Ba[i, c] + bh2 * a.Bq[i, c] + gh * a.Bv[i, c] + ga * a.Bg[i, c]
+            zb[i, c] = Ba[i, c] + bh2 * Bq[i, c] + gh * Bv[i, c] + ga * Bg[i, c]
     for i in range(n_con):
         for c in range(m):
-            a.zb[n_dof + i, c] = sc.w_new.scale * a.Bl[i, c]
+            zb[n_dof + i, c] = sc.w_new.scale * Bl[i, c]
     for i in range(n_dof + n_con):
         for c in range(m):
-            a.mu[i, c] = a.zb[i, c]
+            mu[i, c] = zb[i, c]
 
 
 @kernel
@@ -299,7 +302,7 @@ def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine):
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):
-        begin(a, sc, k)
+        begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
         j = k - K.k0[0]
         new, old = kept_state(K, j + 1), kept_state(K, j)
         Fk = kept_factor(K, F, j)

@@ -113,22 +113,25 @@ def rhs(d, M, T, sc, D, new, old, k):
 
 
 @kernel
-def store(d, sc, x, k):
+def store(DQ, DV, DA, DG, DL, sc, x, k):
     """Store the step's solution ``x = (da, dlam/scale)`` (n, n_x) as time index ``k`` of the
-    histories and advance ``dq, dv, dg`` by the Newmark update from ``k - 1`` (``k == 0``: the
-    initial solve, which sets ``da, dg, dlam`` only)."""
+    histories ``DQ, DV, DA, DG, DL`` (those of :class:`Direct`) and advance ``dq, dv, dg`` by
+    the Newmark update from ``k - 1`` (``k == 0``: the initial solve, which sets ``da, dg,
+    dlam`` only). The histories are passed, not the whole :class:`Direct`: Python calls this
+    kernel, and unboxing ``Direct`` (its pseudo-load data) in the call's wrapper costs about a
+    second of compile."""
     n_x = x.shape[1]
-    n_dof = d.DQ.shape[2]
-    n_con = d.DL.shape[2]
-    lev = d.DQ.shape[1], d.DV.shape[1], d.DA.shape[1], d.DG.shape[1], d.DL.shape[1]
+    n_dof = DQ.shape[2]
+    n_con = DL.shape[2]
+    lev = DQ.shape[1], DV.shape[1], DA.shape[1], DG.shape[1], DL.shape[1]
     scale = sc.w_new.scale
     if k == 0:
         for i in range(n_x):
             for r in range(n_dof):
-                d.DA[i, 0, r] = x[r, i]
-                d.DG[i, 0, r] = x[r, i]
+                DA[i, 0, r] = x[r, i]
+                DG[i, 0, r] = x[r, i]
             for r in range(n_con):
-                d.DL[i, 0, r] = x[n_dof + r, i] * scale
+                DL[i, 0, r] = x[n_dof + r, i] * scale
         return
     m = k - 1
     qh = np.empty(n_dof)
@@ -137,14 +140,14 @@ def store(d, sc, x, k):
     for i in range(n_x):
         for r in range(n_dof):
             da[r] = x[r, i]
-        predict(sc.pc, d.DQ[i, m % lev[0]], d.DV[i, m % lev[1]], d.DA[i, m % lev[2]],
-                d.DG[i, m % lev[3]], qh, vh)
-        update(sc.pc, sc.upd, qh, vh, da, d.DA[i, m % lev[2]], d.DG[i, m % lev[3]],
-               d.DQ[i, k % lev[0]], d.DV[i, k % lev[1]], d.DG[i, k % lev[3]])
+        predict(sc.pc, DQ[i, m % lev[0]], DV[i, m % lev[1]], DA[i, m % lev[2]],
+                DG[i, m % lev[3]], qh, vh)
+        update(sc.pc, sc.upd, qh, vh, da, DA[i, m % lev[2]], DG[i, m % lev[3]],
+               DQ[i, k % lev[0]], DV[i, k % lev[1]], DG[i, k % lev[3]])
         for r in range(n_dof):
-            d.DA[i, k % lev[2], r] = da[r]
+            DA[i, k % lev[2], r] = da[r]
         for r in range(n_con):
-            d.DL[i, k % lev[4], r] = x[n_dof + r, i] * scale
+            DL[i, k % lev[4], r] = x[n_dof + r, i] * scale
 
 
 @kernel
@@ -203,4 +206,4 @@ def chunk(d, M, T, sc, F, K, k0, k1, refine):
                             x[r, i] += d.r[r, i]
                 rr, bb = refinement_residual(d)
                 d.refined[k] = rr / max(bb, 1e-300)
-        store(d, sc, x, k)
+        store(d.DQ, d.DV, d.DA, d.DG, d.DL, sc, x, k)

@@ -326,7 +326,7 @@ def _with_terms(a, vjps, sys0, lo: int, hi: int):
 def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None) -> None:
     """Step ``k`` of the sweep with a factor solved from Python (the same kernels around
     the solves as the compiled sweep; ``refine`` as for it)."""
-    kadj.begin(a, sc, k)
+    kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
     lu = step.factor
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is None:

@@ -108,7 +108,7 @@ class DirectHook(StepHook):
             d.x[:] = x
             rr, bb = refinement_residual(d)
             d.refined[k] = rr / max(bb, 1e-300)
-        store(d, sc, x, k)
+        store(d.DQ, d.DV, d.DA, d.DG, d.DL, sc, x, k)
         self.seconds += _time.perf_counter() - t0
 
     def kernels(self, k0: int, k1: int) -> tuple:
