@@ -1,4 +1,4 @@
-"""The adjoint's units of evaluation (morphlab.sensitivity.designs.share_units): variables on
+"""The adjoint's units of evaluation (morphlab.sensitivity.units.share_units): variables on
 the linear path whose items, coordinates and residual rows are disjoint are evaluated together,
 and each takes its own rows of the common column.
 
@@ -16,7 +16,8 @@ from morphlab.compile.system import time_table
 from morphlab.kernels.pseudo import Column, explicit_column
 from morphlab.kernels.types import Level, Weights
 from morphlab.sensitivity.adjoint import _touched
-from morphlab.sensitivity.designs import CS_STEP, changes, pseudo_data, share_units
+from morphlab.sensitivity.designs import CS_STEP, changes, pseudo_data
+from morphlab.sensitivity.units import share_units
 from tests.models import E_AL, RHO_AL, straight_nodes
 
 

@@ -64,7 +64,7 @@ class Sweep(NamedTuple):
     m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``; the
     pseudo-load data ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,),
     ``RI``, and its units of evaluation (unit ``u`` evaluates variable ``UV[u]`` of ``ps``
-    for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.designs.share_units``);
+    for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.units.share_units``);
     the gradient ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no
     rows: none) with its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.
     data_gradient`), accumulated; the stiffness derivatives of its variables ``KO``, ``KX``,

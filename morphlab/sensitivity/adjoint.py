@@ -39,9 +39,9 @@ from ..solve.record import keep_record, release
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
-from .designs import bodies_linear, share_units
 from .direct import converged_blocks
 from .histories import to_store
+from .units import bodies_linear, share_units
 
 
 @dataclass
