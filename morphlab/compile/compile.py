@@ -189,12 +189,29 @@ def compile_model(model: Model, dtype=None, *, like: System | None = None,
     if not model.bodies:
         raise ModelError(f"model {model.name!r} has no bodies")
     dt = np.dtype(dtype) if dtype is not None else _dtype_of(model)
-    delta = None if like is None else section_delta(model, like, dt)
-    if delta is not None:
-        copy = section_system(like, delta)
+    if like is None:
+        return _compile(model, dt, None, on_built)
+    out = compile_like(model, like, dt, on_built)
+    if isinstance(out, SectionDelta):
+        out = section_system(like, out)
         if on_built is not None:
-            on_built(copy)
-        return copy
+            on_built(out)
+    return out
+
+
+def compile_like(model: Model, like: System, dt,
+                 on_built: Callable[[System], None] | None = None) -> SectionDelta | System:
+    """``model``, a design of the model ``like`` was compiled from, in ``dt``: its
+    :class:`SectionDelta` where it differs in beams' sections alone (no system formed:
+    :func:`section_system` forms it), else its system compiled like ``like``
+    (:func:`compile_model`'s ``like``)."""
+    delta = section_delta(model, like, dt)
+    return delta if delta is not None else _compile(model, dt, like, on_built)
+
+
+def _compile(model: Model, dt, like: System | None, on_built) -> System:
+    """``model`` compiled in ``dt`` item by item (:func:`compile_model`), with ``like``'s
+    unchanged beams copied and its pattern reused where the topology is equal."""
     b = Builder(model, dt)
     record = {}
     for item in items_of(model):

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..compile import System
-from ..compile.design import layout
 from ..kernels import adjoint as kadj
 from ..kernels.ffrf_adjoint import FIELDS, STIFFNESS
 from ..kernels.histories import Histories
@@ -296,17 +295,17 @@ def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
     and the offsets of its fields (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`); the
     stiffness derivatives of each lumped variable, element by element, for its share of them
     (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`)."""
-    slots = {(s.kind, s.field): s for s in layout(sys0.arrays)}
+    slots = {(s.kind, s.field): s for s in sys0.slots}
     GO = np.array([slots[f].start for f in FIELDS], dtype=np.int64)
-    k = slots[STIFFNESS]
-    KX, KE, KV = [], [np.zeros(0, np.int64)], [np.zeros((0, 36))]
+    k = slots[STIFFNESS]  # k.size = 36 entries an element
+    KX, KE, KV = [], [np.zeros(0, np.int64)], [np.zeros((0, k.size))]
     for i in np.flatnonzero(lumped):
         pos, val = ps.PP[ps.PO[i]:ps.PO[i + 1]], ps.PV[ps.PO[i]:ps.PO[i + 1]]
         sel = (pos >= k.start) & (pos < k.start + k.n * k.size)
         if sel.any():
-            elements, at = np.unique((pos[sel] - k.start) // 36, return_inverse=True)
-            dK = np.zeros((elements.size, 36))
-            dK[at, (pos[sel] - k.start) % 36] = val[sel]
+            elements, at = np.unique((pos[sel] - k.start) // k.size, return_inverse=True)
+            dK = np.zeros((elements.size, k.size))
+            dK[at, (pos[sel] - k.start) % k.size] = val[sel]
             KX.append(i)
             KE.append(elements)
             KV.append(dK)

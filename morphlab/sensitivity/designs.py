@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from ..compile import System, compile_model
-from ..compile.compile import SectionDelta, section_delta, section_system
+from ..compile.compile import SectionDelta, compile_like, section_system
 from ..compile.design import owners, views
 from ..compile.system import time_table
 from ..errors import MorphlabError, SensitivityError
@@ -215,12 +215,11 @@ def changes(build: Callable, p0: dict, names: list[str], sys0: System, times: np
     for v in names:
         delta = 1j * CS_STEP if steps is None else steps[v]
         dtype = np.dtype(np.complex128 if steps is None else np.float64)
-        model = perturbed_model(build, p0, v, delta)
-        sections = section_delta(model, sys0, dtype)
-        if sections is not None:  # sections alone: the changed rows, no compile
-            ch = section_change(sys0, sections, delta)
+        compiled = compile_like(perturbed_model(build, p0, v, delta), sys0, dtype)
+        if isinstance(compiled, SectionDelta):  # sections alone: the changed rows, no system
+            ch = section_change(sys0, compiled, delta)
         else:
-            sys_p = compile_model(model, dtype=dtype, like=sys0)
+            sys_p = compiled
             check_same_layout(sys0, sys_p, v)
             T0 = time_table(sys0, times) if T0 is None else T0
             ch = change_of(sys0, sys_p, delta, T0, times)
