@@ -67,3 +67,22 @@ def test_numba_cache_dir_is_respected(tmp_path):
                           "kernel_cache_dir; print(kernel_cache_dir())"], env=env,
                          capture_output=True, text=True, check=True).stdout
     assert out.strip().startswith(str(tmp_path))
+
+
+def test_a_wait_for_another_process_is_reported():
+    """A kernel another process is compiling (a lock file held elsewhere) is waited for;
+    the wait starts the notice and the progress lines name the kernel."""
+    import io
+    import time
+
+    from morphlab.kernels._jit import LOCKS
+
+    out = io.StringIO()
+    with CompileProgress("adjoint", stream=out, every=0.05):
+        for f in LOCKS.on_wait:
+            f("morphlab.kernels.adjoint.sweep.0123456789abcdef0123.lock")
+        time.sleep(0.2)
+    text = out.getvalue()
+    assert "compiling the numerical kernels of the adjoint" in text
+    assert "now sweep (another process)" in text
+    assert LOCKS.on_wait == []  # the block's hook is removed on leaving

@@ -3,7 +3,9 @@ line of progress every few seconds, and the total at the end.
 
 Numba compiles a kernel the first time it meets a new kind of model (a new set of item kinds,
 dense or sparse step matrices, real or complex numbers) and caches the machine code on disk;
-later processes load it without compiling. Compilation is detected exactly, from Numba's
+later processes load it without compiling. A kernel that another process is compiling (a
+compile helper, a second test worker) is waited for, and the wait is reported like a
+compilation. Compilation is detected exactly, from Numba's
 compile events (a load from the cache sends none), so nothing is printed when the kernels are
 cached, and a long compilation is never silent for more than :attr:`CompileProgress.every`
 seconds.
@@ -20,6 +22,8 @@ import threading
 import time
 
 from numba.core import event
+
+from ..kernels._jit import LOCKS
 
 #: CPU seconds of a first use on the reference machine (BENCHMARKS.md, case compile): the
 #: time loop of a model of a new kind, and each sensitivity method on top of it.
@@ -68,6 +72,14 @@ class CompileProgress(event.Listener):
         self.depth -= 1
         self.count += 1
 
+    def on_wait(self, lock: str) -> None:
+        """This process waits for a kernel another one is compiling (a lock file of
+        :mod:`morphlab.kernels._jit`: ``module.kernel.<signature hash>.lock``)."""
+        self.current = lock.rsplit(".", 2)[0].rsplit(".", 1)[-1] + " (another process)"
+        if self.started is None:
+            self.started = (time.perf_counter(), time.process_time())
+            self._notice()
+
     # ---- the messages
     def _print(self, text: str) -> None:
         print(f"morphlab: {text}", file=self.stream or sys.stderr, flush=True)
@@ -95,6 +107,7 @@ class CompileProgress(event.Listener):
             return _active[0]
         _active.append(self)
         event.register("numba:compile", self)
+        LOCKS.on_wait.append(self.on_wait)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -102,6 +115,7 @@ class CompileProgress(event.Listener):
             return
         _active.pop()
         event.unregister("numba:compile", self)
+        LOCKS.on_wait.remove(self.on_wait)
         self._stop.set()
         if self.started is not None:
             wall = time.perf_counter() - self.started[0]

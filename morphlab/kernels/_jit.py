@@ -9,13 +9,129 @@
 ``NUMBA_DISABLE_JIT=1``, for debugging, every kernel is the plain Python function).
 
 ``nogil=True`` (:func:`kernel` with ``nogil``) releases the GIL while a long kernel runs.
+
+Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
+main command and its compile helper) compile each kernel once between them: a process
+compiles a signature of a kernel holding a lock file for that signature, and a second
+process that needs it waits and then loads it from the cache instead of compiling it again
+(:class:`CacheLocks`). Writing a kernel's cache index is locked per kernel too: Numba reads,
+extends and rewrites one index per kernel, so two processes adding different signatures at
+once could otherwise drop one or give two signatures the same data file.
 """
 
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import re
+import time
+import warnings
+
 from numba import njit
+from numba.core import sigutils
+from numba.core.compiler_lock import global_compiler_lock
 from numba.core.registry import CPUDispatcher
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: no locks across processes
+    fcntl = None
 
-class InnerDispatcher(CPUDispatcher):
+
+class CacheLocks:
+    """Lock files beside the cached kernels, held across processes (``flock``).
+
+    A lock is taken only while Numba's compiler lock is held, so one thread per process
+    takes them; a lock this process already holds (a kernel compiled inside another one's
+    compilation) is not taken again. A holder that died releases its lock with its process.
+    A lock not obtained within :attr:`timeout` seconds (a holder stopped, not dead) is given
+    up with a warning: the kernel is then compiled without it, as Numba would.
+    """
+
+    timeout = 600.0  #: seconds, far above any one kernel's compilation
+    poll = 0.02  #: seconds between attempts
+
+    def __init__(self):
+        self.held: set = set()
+        #: Called with the lock's name when this process starts waiting for it.
+        self.on_wait: list = []
+
+    @contextlib.contextmanager
+    def hold(self, folder: str | None, name: str):
+        """Hold the lock ``name`` in ``folder`` (no lock without a folder or ``fcntl``)."""
+        if folder is None or fcntl is None:
+            yield
+            return
+        path = os.path.join(folder, "locks", name)
+        if path in self.held:
+            yield
+            return
+        try:
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError:  # a read-only cache folder: Numba caches nothing there either
+            yield
+            return
+        try:
+            if self._acquire(fd, path, name):
+                self.held.add(path)
+            yield
+        finally:
+            self.held.discard(path)
+            os.close(fd)  # releases the lock
+
+    def _acquire(self, fd: int, path: str, name: str) -> bool:
+        deadline = time.monotonic() + self.timeout
+        waiting = False
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return True
+            except BlockingIOError:
+                if not waiting:
+                    waiting = True
+                    for f in self.on_wait:
+                        f(name)
+                if time.monotonic() > deadline:
+                    warnings.warn(f"kernel cache lock {path} still held by another process "
+                                  f"after {self.timeout:.0f} s: compiling without it",
+                                  RuntimeWarning, stacklevel=4)
+                    return False
+                time.sleep(self.poll)
+
+
+#: The locks of this process.
+LOCKS = CacheLocks()
+
+
+def _cache_folder(dispatcher) -> str | None:
+    return getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
+
+
+def _kernel_name(dispatcher) -> str:
+    """The kernel's module and qualified name, as a file name (``<lambda>`` -> ``_lambda_``)."""
+    f = dispatcher.py_func
+    return re.sub(r"[^\w.]", "_", f"{f.__module__}.{f.__qualname__}")
+
+
+class KernelDispatcher(CPUDispatcher):
+    """The dispatcher of a :func:`kernel`: compiles a signature under its lock file, so a
+    process sharing the cache loads it rather than compiling it too (module docstring)."""
+
+    def compile(self, sig):
+        with global_compiler_lock:
+            args, _ = sigutils.normalize_signature(sig)
+            existing = self.overloads.get(tuple(args))
+            if existing is not None:
+                return existing.entry_point
+            name = _kernel_name(self)
+            key = hashlib.sha1(f"{name}{args}".encode()).hexdigest()[:20]
+            with LOCKS.hold(_cache_folder(self), f"{name}.{key}.lock"):
+                return super().compile(sig)
+
+
+class InnerDispatcher(KernelDispatcher):
     """The dispatcher of an :func:`inner` kernel: callable from kernels only."""
 
     def __call__(self, *args, **kws):
@@ -23,19 +139,33 @@ class InnerDispatcher(CPUDispatcher):
                         "other kernels call: it has no Python entry")
 
 
+def _locked_saves(d, cls):
+    """``d`` as a ``cls`` whose cache index is written under the kernel's lock."""
+    if not isinstance(d, CPUDispatcher):  # NUMBA_DISABLE_JIT returns the function itself
+        return d
+    d.__class__ = cls
+    cache = d._cache
+    save = cache.save_overload
+
+    def save_overload(sig, data):
+        with LOCKS.hold(_cache_folder(d), f"{_kernel_name(d)}.index.lock"):
+            save(sig, data)
+
+    cache.save_overload = save_overload
+    return d
+
+
 def kernel(fn=None, *, nogil: bool = False):
     """Compile ``fn`` as a kernel Python calls (module docstring)."""
     if fn is None:
-        return lambda f: njit(cache=True, nogil=nogil)(f)
-    return njit(cache=True, nogil=nogil)(fn)
+        return lambda f: kernel(f, nogil=nogil)
+    return _locked_saves(njit(cache=True, nogil=nogil)(fn), KernelDispatcher)
 
 
 def inner(fn):
     """Compile ``fn`` as a kernel only kernels call (module docstring)."""
-    d = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)(fn)
-    if isinstance(d, CPUDispatcher):  # not with NUMBA_DISABLE_JIT, which returns ``fn``
-        d.__class__ = InnerDispatcher
-    return d
+    return _locked_saves(njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)(fn),
+                         InnerDispatcher)
 
 
 def inlined(fn):
