@@ -66,9 +66,10 @@ def _parser() -> argparse.ArgumentParser:
                    "10-11: CL, CD, transition, the skin's deflection under the air load)")
     w = sub.add_parser("warmup", help="compile the kernels the morphing study needs",
                        description="Compile the numerical kernels the morphing study "
-                       "(morphlab morphing) needs: its time loop and its sensitivity methods, "
-                       "over a few steps (fills the Numba cache next to the kernels, or "
-                       "NUMBA_CACHE_DIR; later runs load them).", formatter_class=fmt)
+                       "(morphlab morphing) needs: its time loop, its sensitivity methods and "
+                       "its flight loads' statics, over a few steps, in two processes (fills "
+                       "the Numba cache next to the kernels, or NUMBA_CACHE_DIR; later runs "
+                       "load them).", formatter_class=fmt)
     w.set_defaults()
     return p
 
@@ -133,22 +134,46 @@ def _publish(staging: str, out: str) -> None:
 
 
 def _morphing(args, interrupts: _Interrupts) -> str:
-    from .morphing import leading_edge as morphing
-
     overrides = _overrides(args.set or [])
     staging = _staging(args.out)
     try:
         _check_design(overrides)
-        report = str(morphing.study(out=staging, overrides=overrides, quick=args.quick,
-                                    figures=not args.no_figures, timing=not args.no_timing,
-                                    progress=args.progress))
-        interrupts.check()
-        if not args.no_aero:
-            report += "\n\n" + _aero(overrides, staging, not args.no_figures)
-            interrupts.check()
+        with _compile_helper(args):
+            report = _study(args, overrides, staging, interrupts)
         _publish(staging, args.out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+    return report
+
+
+def _compile_helper(args):
+    """On a first use (the time loop or the adjoint not cached), a second process compiles
+    the kernels the command needs last (the adjoint of the timing, the flight loads' statics)
+    while this one compiles and runs the study (morphlab.morphing.warmup); else nothing."""
+    import contextlib
+
+    from .jit.cache import kernels_cached
+    from .kernels.adjoint import sweep
+
+    groups = (["statics"] if not args.no_aero else []) + (["adjoint"] if not args.no_timing
+                                                          else [])
+    if not groups or kernels_cached(*(() if args.no_timing else (sweep,))):
+        return contextlib.nullcontext()
+    from .morphing.warmup import helper
+
+    return helper(groups)
+
+
+def _study(args, overrides: dict, staging: str, interrupts: _Interrupts) -> str:
+    from .morphing import leading_edge as morphing
+
+    report = str(morphing.study(out=staging, overrides=overrides, quick=args.quick,
+                                figures=not args.no_figures, timing=not args.no_timing,
+                                progress=args.progress))
+    interrupts.check()
+    if not args.no_aero:
+        report += "\n\n" + _aero(overrides, staging, not args.no_figures)
+        interrupts.check()
     return report
 
 
@@ -217,11 +242,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with _Interrupts() as interrupts:
             if args.command == "warmup":
-                from .morphing import leading_edge as le
-                from .warmup import warmup_for
+                from .morphing.warmup import helper, warmup
 
-                seconds = warmup_for(le.build, le.DEFAULTS, le.RESPONSES, le.SETTINGS,
-                                     methods=("direct", "direct-fd", "adjoint"))
+                with helper(["statics", "adjoint"]):  # on the second core
+                    seconds = warmup(["time loop", "direct", "direct-fd"])
                 interrupts.check()
                 print("morphlab: kernels ready (" + ", ".join(
                     f"{k} {v:.1f} s" for k, v in seconds.items()) + ")")

@@ -4,7 +4,7 @@ Numba compiles a kernel for each kind of model it meets (the set of item kinds, 
 sparse step matrices, real or complex numbers) and caches the machine code on disk
 (``cache=True``), so later processes only load it. :func:`warmup_for` runs a model's time
 loop and sensitivity methods over a few steps, which compiles exactly what the full runs of
-that model need (``morphlab warmup`` does it for the main command's model);
+that model need (:mod:`morphlab.morphing.warmup` does it for the main command's model);
 :func:`warmup`, a tiny model's (the workers of a parameter study call it).
 """
 
@@ -71,9 +71,7 @@ def warmup_for(build, p0: dict, responses: dict, settings, methods=("direct",),
     from .solve.settings import Settings
     from .solve.timeloop import simulate
 
-    def say(text):
-        (report or (lambda t: print(t, file=sys.stderr, flush=True)))(text)
-
+    say = report or (lambda t: print(t, file=sys.stderr, flush=True))
     short = Settings.of(settings, t_end=steps * Settings.of(settings).dt)
     groups = ["time loop", *methods]
     total = sum(ESTIMATES.get(g, 20.0) for g in groups)
@@ -89,3 +87,4 @@ def warmup_for(build, p0: dict, responses: dict, settings, methods=("direct",),
             sensitivities(build, p0, responses, method=group, settings=short)
         seconds[group] = time.perf_counter() - t0
     return seconds
+

@@ -21,10 +21,14 @@ def kernel_cache_dir() -> str | None:
         return None
 
 
-def kernels_cached() -> bool:
-    """Has the time loop, the last kernel a run compiles, been cached already?"""
-    try:
-        path = run_steps._cache._cache_file._index_path
-    except AttributeError:  # pragma: no cover - another Numba layout: assume cached
-        return True
-    return bool(run_steps.signatures) or os.path.exists(path)
+def kernels_cached(*kernels) -> bool:
+    """Has each of ``kernels`` (default: the time loop, the last kernel a run compiles) been
+    compiled in this process or cached for some kind of model already?"""
+    for k in kernels or (run_steps,):
+        try:
+            path = k._cache._cache_file._index_path
+        except AttributeError:  # pragma: no cover - another Numba layout: assume cached
+            continue
+        if not (k.signatures or os.path.exists(path)):
+            return False
+    return True

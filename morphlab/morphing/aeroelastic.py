@@ -50,7 +50,8 @@ from ..solve.statics import static
 from .aero import AeroResult, skin_loads
 from .flight import FlightCondition
 
-__all__ = ["ACTUATORS", "TOL_MM", "AeroelasticResult", "equilibrium", "outward_normals"]
+__all__ = ["ACTUATORS", "TOL_MM", "AeroelasticResult", "equilibrium", "outward_normals",
+           "warm_statics"]
 
 FloatArray = NDArray[np.float64]
 
@@ -319,3 +320,26 @@ def equilibrium(build: Callable[[], Model], condition: FlightCondition, *,
         err.aeroelastic = out
         raise err
     return out
+
+
+def warm_statics(build: Callable[[], Model], *, body: str = "skin", crank: str = "crank") -> None:
+    """Compile the kernels of :func:`equilibrium`'s static solves without a flow analysis:
+    the skin in vacuum, and under a uniform suction with the crank free and locked (the item
+    kinds of its loaded solves; a few Newton iterations at ``t = 0`` each).
+
+    Parameters
+    ----------
+    build : callable
+        ``build() -> Model``, as for :func:`equilibrium`.
+    body, crank : str
+        The skin beam and the crank body, as for :func:`equilibrium`.
+    """
+    settings = StaticSettings(t=0.0, steps=1, kinematic_tol=None)
+    vacuum = static(build(), settings=settings)
+    n_nodes = len(np.real(vacuum.node_positions(body, -1)))
+    for actuator in ACTUATORS:
+        model = build()
+        if actuator == "locked":
+            _lock(model, crank, 0.0, 0.0)
+        model.add_pressure("air", body, np.full(n_nodes, -1.0e-4))  # 0.1 kPa of suction
+        static(model, settings=settings, q_start=vacuum.q[-1])
