@@ -14,10 +14,11 @@ Each function runs once untimed, then in interleaved rounds (:mod:`morphlab.benc
 ``quick`` times the gradient on 150-step runs (dt 1 ms) instead of the study's 300.
 
 The flow evaluation is timed again in a child process with one BLAS thread
-(``OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=1``): NeuralFoil's small matrix products and the
-panel solve gain nothing from a second thread, and on a machine whose cores are busy the BLAS
-threads wait for each other (measured 15 ms single-threaded against a median of 176 ms with
-two threads at load 4 on 2 cores).
+(``OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=1``), the control of
+:class:`~morphlab.jit.threads.one_blas_thread`, under which ``analyze`` itself runs:
+NeuralFoil's small matrix products and the panel solve gain nothing from a second thread, and
+on a machine whose cores are busy the BLAS threads wait for each other (measured 15 ms
+single-threaded against a median of 176 ms with two threads at load 4 on 2 cores).
 """
 
 from __future__ import annotations

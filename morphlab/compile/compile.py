@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ModelError
+from ..jit.threads import one_blas_thread
 from ..kernels.schema import KINDS, PATTERN, TOPOLOGY
 from ..kernels.system import KIND_NAMES, TIMED_NAMES
 from ..model import Beam, Model
@@ -156,6 +157,7 @@ def section_system(like: System, delta: SectionDelta) -> System:
         time_base={k: v.astype(dt) for k, v in like.time_base.items()}, record=delta.record)
 
 
+@one_blas_thread()
 def compile_model(model: Model, dtype=None, *, like: System | None = None,
                   on_built: Callable[[System], None] | None = None) -> System:
     """Compile ``model`` into a :class:`System`.

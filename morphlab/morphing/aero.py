@@ -32,9 +32,10 @@ of attack is found again for every shape: the weight sets the lift);
 width is the span) and iterates flow and statics to the equilibrium. The design responses
 built on :func:`analyze` are in :mod:`~morphlab.morphing.aero_response`; the time of one
 analysis is in BENCHMARKS.md (case ``aero``): about 15 ms (7 ms without the panel method)
-with one BLAS thread. On a machine whose cores are busy, NumPy's BLAS threads in NeuralFoil's
-small matrix products and the panel solve wait for each other (a median of 176 ms at load 4
-on 2 cores): set ``OPENBLAS_NUM_THREADS=1`` before starting Python there.
+with one BLAS thread. :func:`analyze` runs with one BLAS thread
+(:class:`~morphlab.jit.threads.one_blas_thread`): NeuralFoil's small matrix products and the
+panel solve gain nothing from more, and on a machine whose cores are busy BLAS threads wait
+for each other (a median of 176 ms at load 4 on 2 cores with NumPy's default threads).
 
 Units: coordinates in mm, pressures in MPa (N/mm²), angles in degrees, flight data in SI
 (:mod:`~morphlab.morphing.flight`).
@@ -48,6 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ModelError
+from ..jit.threads import one_blas_thread
 from .cst import CSTAirfoil
 from .flight import FlightCondition
 from .panel import panel_solution
@@ -267,6 +269,7 @@ def _match_skin(panels, s_in, s_st, target, alpha0: float) -> float:
                      f"{step:.2e} rad); use cp_match='lift'")
 
 
+@one_blas_thread()
 def analyze(coordinates: ArrayLike, condition: FlightCondition, *, model_size: str = "xlarge",
             n_panels: int = 240, cp_match: str = "skin", match_xc: float = 0.26,
             pressure: bool = True, alpha_start: float | None = None) -> AeroResult:

@@ -23,6 +23,7 @@ import numpy as np
 from ..compile import compile_model
 from ..errors import Interrupted, MorphlabError, ResponseError, SensitivityError
 from ..jit.progress import CompileProgress
+from ..jit.threads import one_blas_thread
 from ..results.result import Result
 from ..solve.settings import Settings
 from .designs import CS_STEP, call_build
@@ -153,6 +154,7 @@ def _check_inputs(p0, names, responses, store) -> None:
                                f"{HISTORIES}, got {store!r}")
 
 
+@one_blas_thread()
 def sensitivities(build: Callable[[dict], object], p0: Mapping[str, float],
                   responses: Mapping[str, Callable[[Result], float]], *,
                   method: str | Strategy = "auto", variables: list | None = None,

@@ -12,6 +12,7 @@ from ..compile.checks import check_units
 from ..compile.system import time_table
 from ..errors import ConvergenceError, ModelError, SingularMatrixError, SolverError
 from ..jit.progress import CompileProgress
+from ..jit.threads import one_blas_thread
 from ..model import Model
 from ..results.checks import check_kinematic_tol, kinematic_findings, report_findings
 from ..results.result import Result
@@ -39,6 +40,7 @@ def _static_times(system: System, times: np.ndarray):
                          if tt is not None and hasattr(tt, "cd")})
 
 
+@one_blas_thread()
 def static(model: Model | System, *, settings: StaticSettings | None = None, q_start=None,
            **options) -> Result:
     """Static equilibrium at time ``t`` (loads and drives evaluated at ``t``), by Newton on

@@ -26,6 +26,7 @@ from ..compile.checks import check_units
 from ..compile.system import time_table
 from ..errors import Interrupted, ModelError, ProfileError, SolverError
 from ..jit.progress import CompileProgress
+from ..jit.threads import one_blas_thread
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
 from ..kernels.steps import run_steps
 from ..model import Model
@@ -113,6 +114,7 @@ def _time_table(system: System, settings: Settings, t: np.ndarray, hist: History
         return time_table(system, t[:err.step]), err
 
 
+@one_blas_thread()
 def integrate(system: System, settings: Settings, *, observer: Callable | None = None,
               hook: StepHook | None = None, progress: bool | Callable = False,
               scale: float | None = None, q0=None, v0=None, polish: int = 0,
@@ -344,6 +346,7 @@ def _print_progress(n, n_steps, t):
               flush=True)
 
 
+@one_blas_thread()
 def simulate(model: Model | System, *, settings: Settings | None = None,
              progress: bool | Callable = False, observer: Callable | None = None,
              max_halvings: int = 0, q0=None, v0=None, store=HISTORIES, memmap=None,
