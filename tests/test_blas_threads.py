@@ -42,7 +42,7 @@ def test_nested_uses_restore_once_and_a_failure_restores_too(two_threads):
             assert set(blas_threads()) == {1}
         assert set(blas_threads()) == {1}  # the outer block still runs
     assert set(blas_threads()) == {2}
-    with pytest.raises(ZeroDivisionError):
+    with pytest.raises(RuntimeError, match="inside"):
         with one_blas_thread():
-            1 / 0
+            raise RuntimeError("failed inside the block")
     assert set(blas_threads()) == {2}
