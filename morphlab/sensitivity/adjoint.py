@@ -116,7 +116,7 @@ class AdjointHook(StepHook):
                 self.checkpoints[k0] = self.hist.state(k0 - 1)
                 return None
             self.records.append(keep_record(self.system, F, self.n_steps - k0 + 1, k0,
-                                            self.rows == 3, pooled=True))
+                                            self.rows == 3, pool="adjoint"))
             self.patterns.append(F)
         R = self.records[-1]
         st = self.hist.state(k0 - 1)
@@ -164,7 +164,8 @@ class _Replay:
         k = c
         while k < k1:
             F = nw.factorization.loop_arrays()
-            K = keep_record(self.hook.system, F, k1 - k, k, self.hook.rows == 3, pooled=True)
+            K = keep_record(self.hook.system, F, k1 - k, k, self.hook.rows == 3,
+                            pool="adjoint")
             j = (k - 1) % 2
             K.Q[0], K.V[0], K.A[0], K.L[0] = H.Q[j], H.V[j], H.A[j], H.L[j]
             k_next, status, bad, it, z = run_steps(stp.M, stp.T, stp.P, stp.scheme_of(),
@@ -272,10 +273,11 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
                 a = _with_terms(a, vjps, sys0, k0, k)
                 kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact)
                 k = k0 - 1
-            release([K for K, _ in pieces])  # the next segment's record is made of them
+            # the next segment's record is made of them
+            release([K for K, _ in pieces], "adjoint")
         k = lo - 1
     if hook.records:  # the next run's record is made of them (``solve/record.py``)
-        release(hook.records)
+        release(hook.records, "adjoint")
     for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in sweep)
         a.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
     grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, sys0, changes)

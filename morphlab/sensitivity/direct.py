@@ -32,11 +32,14 @@ from ..kernels.direct import Direct, chunk, prepare, refinement_residual, store
 from ..kernels.newton import Csc
 from ..kernels.pseudo import Column, Pseudo
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record
+from ..solve.record import keep_record, release
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
 from .histories import HISTORIES, PerturbedResult
+
+#: A chunk's record holds a multiple of this many steps.
+RECORD_STEPS = 32
 
 
 def start_record(K: Keep, hist, k0: int) -> Keep:
@@ -115,7 +118,10 @@ class DirectHook(StepHook):
         F = self.stepper.newton.factorization.loop_arrays()
         K = k1 - k0
         if self.record is None or self.record.Q.shape[0] < K + 1 or not _fits(self.record, F):
-            self.record = keep_record(self.system, F, K, k0, self.reuse)
+            # rounded up, so that runs whose chunks differ by a few steps share the record
+            # the last one released (morphlab.solve.record)
+            self.record = keep_record(self.system, F, -(-K // RECORD_STEPS) * RECORD_STEPS,
+                                      k0, self.reuse, pool="direct", chunks=True)
         return start_record(self.record, self.hist, k0)
 
     def after_chunk(self, k0: int, k1: int) -> None:
@@ -156,6 +162,7 @@ def direct_run(sys0: System, settings: Settings, psys: list, ps: Pseudo, dq0, dv
     hook = DirectHook(sys0, settings.n_steps, ps, dq0, dv0, kept, reuse=reuse, refine=refine)
     t0 = _time.perf_counter()
     res0 = integrate(sys0, settings, hook=hook, progress=progress)
+    release([hook.record], "direct")  # the next run's record is made of it
     total = _time.perf_counter() - t0
     by_variable = {k: hook.full[k] for k in HISTORIES if k in kept}
     perturbed = [PerturbedResult(res0, s, by_variable, i) for i, s in enumerate(psys)]

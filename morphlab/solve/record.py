@@ -6,12 +6,15 @@ and a sensitivity run call the compiled time loop with the same types and share 
 compilation.
 
 A record of a whole run is large (the factors of every step: ~300 MB for the 240-element
-skin), and memory obtained afresh is slow to write the first time (each page is faulted in
-as it is written). The adjoint therefore hands its records back when its sweep is done
-(:func:`release`), and its next record of the same sizes in this process is made of them
-(:func:`keep_record` with ``pooled``). A record's rows are each written by its run before
-they are read, so a reused record needs no clearing. The process keeps the records of the
-last release (at most the adjoint's ``memory``); :func:`clear_pool` frees them.
+skin; the direct method's record of a chunk of steps, ~100 MB), and memory obtained afresh is
+slow to write the first time: each page is faulted in as it is written, and where NumPy asks
+for huge pages the kernel may stop the process to compact memory for them (a direct run of the
+240-element skin measured 430 ms with its record reused, up to 930 ms with a fresh one). A
+method therefore hands its records back when its run is done (:func:`release`), and its next
+record of the same sizes in this process is made of them (:func:`keep_record` with ``pool``).
+A record's rows are each written by its run before they are read, so a reused record needs no
+clearing. The process keeps the records of each method's last release (at most the adjoint's
+``memory`` and one direct record); :func:`clear_pool` frees them.
 """
 
 from __future__ import annotations
@@ -24,27 +27,32 @@ import numpy as np
 from ..compile import System
 from ..kernels.adjoint import Keep
 
-_POOL: list[Keep] = []  # the records of the last release, free to be taken
+#: Per method ("adjoint", "direct"), the records of its last release, free to be taken.
+_POOL: dict[str, list[Keep]] = {}
 _LOCK = threading.Lock()
 
 
 def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool, *,
-                pooled: bool = False) -> Keep:
+                pool: str | None = None, chunks: bool = False) -> Keep:
     """An empty :class:`~morphlab.kernels.adjoint.Keep` of ``K`` steps from ``k0``, shaped for
     the factors of ``factor_arrays`` (:meth:`~morphlab.solve.linalg.StepFactorization.
     loop_arrays`); with ``blocks`` room for each step's ``Dq, Dv`` (the reuse variant).
-    ``pooled``: made of a released record of the same sizes where the pool has one (module
-    docstring; its rows hold another run's values until this run writes them); where it has
-    none, the pool is freed first, so that a process holds one run's released records at most
-    besides the run in progress."""
+    ``pool``: the method's name; the record is made of a released record of that method of the
+    same sizes where the pool has one (module docstring; its rows hold another run's values
+    until this run writes them); where it has none, the method's released records are freed
+    first, so that a process holds one run's released records per method at most besides the
+    run in progress. ``chunks``: records of chunks of steps (the direct method's, which reads
+    back the steps it writes only): a released record of more steps serves, and a miss keeps
+    the released ones (the chunks of one run may differ in their sparse factors' fill; a later
+    chunk of the run may take them)."""
     F = factor_arrays
     dt = np.dtype(system.dtype)
     fac = [None if x is None else ((K,) + x.shape, np.dtype(np.int64 if x is F.piv else dt))
            for x in (F.LU, F.piv, F.Lx, F.Ux, F.Ud)]
     states = [(K + 1, system.n_dof)] * 3 + [(K + 1, system.n_con)]
     shapes = fac + [((K, 2, system.nnz if blocks else 0), dt)] + [(s, dt) for s in states]
-    if pooled and K > 0:
-        R = _take(shapes)
+    if pool is not None and K > 0:
+        R = _take(shapes, pool, chunks)
         if R is not None:
             R.k0[0] = k0
             return R
@@ -56,23 +64,38 @@ def _shapes(R: Keep) -> list:
     return [None if x is None else (x.shape, x.dtype) for x in R[:-1]]
 
 
-def _take(shapes: list) -> Keep | None:
-    """A released record of these array shapes and dtypes, taken from the pool, or None (and
-    the pool freed)."""
+def _fit(have: list, want: list, longer: bool) -> bool:
+    """Do a record's array shapes and dtypes ``have`` serve ``want``? (``longer``: with as
+    many steps or more.)"""
+    if not longer:
+        return have == want
+    return len(have) == len(want) and all(
+        h == w if h is None or w is None else
+        (h[1] == w[1] and h[0][1:] == w[0][1:] and h[0][0] >= w[0][0])
+        for h, w in zip(have, want))
+
+
+def _take(shapes: list, pool: str, chunks: bool = False) -> Keep | None:
+    """A released record of method ``pool`` that serves these array shapes and dtypes
+    (:func:`_fit`), taken from the pool, or None (and, unless ``chunks``, that method's
+    released records freed)."""
     with _LOCK:
-        for i, R in enumerate(_POOL):
-            if _shapes(R) == shapes:
-                return _POOL.pop(i)
-        _POOL.clear()
+        held = _POOL.setdefault(pool, [])
+        for i, R in enumerate(held):
+            if _fit(_shapes(R), shapes, chunks):
+                return held.pop(i)
+        if not chunks:
+            held.clear()
     return None
 
 
-def release(records: Iterable[Keep]) -> None:
-    """Hand ``records`` (no longer read by their run) to the pool, in place of the records it
-    holds: the next :func:`keep_record` of the same sizes in this process takes them."""
-    kept = [R for R in records if R.Q.shape[0] > 1]
+def release(records: Iterable[Keep], pool: str) -> None:
+    """Hand ``records`` (no longer read by their run) to method ``pool``'s part of the pool,
+    in place of the records it holds: the method's next :func:`keep_record` of the same sizes
+    in this process takes them."""
+    kept = [R for R in records if R is not None and R.Q.shape[0] > 1]
     with _LOCK:
-        _POOL[:] = kept
+        _POOL[pool] = kept
 
 
 def clear_pool() -> None:
@@ -84,7 +107,8 @@ def clear_pool() -> None:
 def pooled_bytes() -> int:
     """Bytes of the released records the process keeps."""
     with _LOCK:
-        return sum(x.nbytes for R in _POOL for x in R if x is not None)
+        return sum(x.nbytes for held in _POOL.values() for R in held for x in R
+                   if x is not None)
 
 
 def fits(K: Keep, F) -> bool:
