@@ -69,3 +69,29 @@ def test_the_statics_group_compiles_what_the_flight_loads_solve_with(tmp_path):
     measured = json.loads(out.stdout.strip().splitlines()[-1])
     assert measured["iterations"] >= 1
     assert measured["compiled"] == []
+
+
+@pytest.mark.parametrize("no_aero, no_timing, cached, groups", [
+    (False, False, False, ["statics", "adjoint"]),
+    (True, False, False, ["adjoint"]),
+    (False, True, False, ["statics"]),
+    (True, True, False, None),
+    (False, False, True, None),
+])
+def test_the_main_command_starts_a_helper_on_first_use_only(monkeypatch, no_aero, no_timing,
+                                                           cached, groups):
+    """``morphlab morphing`` starts the helper for the groups it will need (the adjoint only
+    with the timing, the statics only with the flight loads) when they are not cached."""
+    import argparse
+    import contextlib
+
+    from morphlab import cli
+    from morphlab.jit import cache
+
+    started = []
+    monkeypatch.setattr(mw, "helper", lambda g: started.append(list(g)) or
+                        contextlib.nullcontext())
+    monkeypatch.setattr(cache, "kernels_cached", lambda *k: cached)
+    with cli._compile_helper(argparse.Namespace(no_aero=no_aero, no_timing=no_timing)):
+        pass
+    assert started == ([] if groups is None else [groups])
