@@ -68,7 +68,10 @@ def compile(r: dict, check) -> list[str]:  # noqa: A001 - the case's name
     if "every-item" in sc:
         lines += [f"Every-item model: {', '.join(sc['every-item'].get('kinds', []))}. A "
                   "method's CPU is its process's minus the quickstart process's of the same "
-                  "round; wall is the method's own call.", ""]
+                  "round; wall is the method's own call. The main command's process CPU "
+                  "includes its compile helper's (morphlab.morphing.warmup: the adjoint and "
+                  "the flight loads' statics, compiled in a second process on first use); "
+                  "its kernel column holds what the command's own process compiled.", ""]
     cols = list(sc)  # each scenario's own phase has its name (morphlab.bench.scenarios.run)
     tables = {s: sc[s]["kernels"][s] for s in cols}
     names = sorted({k for t in tables.values() for k in t})
