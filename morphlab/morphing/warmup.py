@@ -27,17 +27,7 @@ def warmup(groups=GROUPS, report=None) -> dict:
     """Compile the kernels of the main command's ``groups`` (:data:`GROUPS`): the time loop
     and the sensitivity methods over a few steps (:func:`morphlab.warmup.warmup_for`), the
     statics of the flight loads (:func:`morphlab.morphing.aeroelastic.warm_statics`).
-
-    Parameters
-    ----------
-    report : callable, optional
-        Called with a line of text before each group (default ``print`` to stderr).
-
-    Returns
-    -------
-    dict
-        Wall seconds per group.
-    """
+    ``report`` and the returned wall seconds per group as for ``warmup_for``."""
     from ..warmup import warmup_for
     from . import leading_edge as le
     from .aeroelastic import warm_statics
