@@ -17,8 +17,8 @@ BLAS calls of the user's own code outside these calls are untouched.
 
 from __future__ import annotations
 
+import functools
 import threading
-from contextlib import ContextDecorator
 
 _LOCK = threading.Lock()
 _state = {"depth": 0, "saved": [], "controller": None}
@@ -34,10 +34,22 @@ def _blas_libraries() -> list:
     return [lc for lc in _state["controller"].lib_controllers if lc.user_api == "blas"]
 
 
-class one_blas_thread(ContextDecorator):  # noqa: N801 - used as a decorator, like a function
+class one_blas_thread:  # noqa: N801 - used as a decorator, like a function
     """Run the block (or the decorated function) with one BLAS thread (module docstring).
     Nested and concurrent uses share one setting: the first to enter sets it, the last to
     leave restores the threads the libraries had."""
+
+    def __call__(self, fn):
+        """``fn`` run inside the block. The wrapper is defined here, in the package, so that
+        a warning raised inside still points at the user's line
+        (:func:`morphlab.errors.warn` skips the package's frames)."""
+
+        @functools.wraps(fn)
+        def call(*args, **kwargs):
+            with self:
+                return fn(*args, **kwargs)
+
+        return call
 
     def __enter__(self) -> one_blas_thread:
         with _LOCK:
