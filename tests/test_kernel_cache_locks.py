@@ -28,8 +28,19 @@ _MODULE = "\n".join(
 _CHILD = textwrap.dedent("""
     import json, os, sys, time
     import numpy as np
-    import lockmod
     me, n, folder = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+    if os.environ.get("SLOW_INDEX"):  # between reading and writing the index, wait for the
+        from numba.core import caching  # others to get there too (3 s at most)
+        save_index = caching.IndexDataCacheFile._save_index
+        def slow(self, overloads):
+            open(os.path.join(folder, "saving." + me), "w").close()
+            t0 = time.monotonic()
+            while (sum(f.startswith("saving.") for f in os.listdir(folder)) < n
+                   and time.monotonic() - t0 < 3.0):
+                time.sleep(0.005)
+            save_index(self, overloads)
+        caching.IndexDataCacheFile._save_index = slow
+    import lockmod
     dtypes = sys.argv[4].split(",")
     open(os.path.join(folder, "ready." + me), "w").close()
     while sum(f.startswith("ready.") for f in os.listdir(folder)) < n:
@@ -41,12 +52,15 @@ _CHILD = textwrap.dedent("""
 """)
 
 
-def _run(tmp_path, jobs: list[str]) -> list[dict]:
-    """Start one process per entry of ``jobs`` (its dtypes, comma-separated) at once."""
+def _run(tmp_path, jobs: list[str], slow_index: bool = False) -> list[dict]:
+    """Start one process per entry of ``jobs`` (its dtypes, comma-separated) at once
+    (``slow_index``: each waits between reading and writing a cache index until all the
+    others have read it too, or 3 s)."""
     barrier = tmp_path / f"barrier{len(list(tmp_path.glob('barrier*')))}"
     barrier.mkdir()
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"),
-               PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+               PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]),
+               SLOW_INDEX="1" if slow_index else "")
     procs = [subprocess.Popen([sys.executable, "-c", _CHILD, str(i), str(len(jobs)),
                                str(barrier), dtypes], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
@@ -72,9 +86,14 @@ def test_two_processes_compile_a_signature_once(tmp_path):
 @pytest.mark.skipif(sys.platform == "win32", reason="no flock: no locks across processes")
 def test_signatures_added_at_once_all_stay_in_the_cache(tmp_path):
     """Two processes add different signatures of one kernel at once: the cache index keeps
-    both (a third process loads both, compiling nothing), each with its own code."""
+    both (a third process loads both, compiling nothing), each with its own code. Numba
+    reads, extends and writes the index; the two processes here wait for each other between
+    reading and writing it, so that without the index's lock both read it empty and one
+    overwrites the other's entry (seen: the third process then compiles again). With the
+    lock the second reads the index only after the first has written it (its wait times out
+    after 3 s)."""
     (tmp_path / "lockmod.py").write_text(_MODULE)
-    real, cplx = _run(tmp_path, ["float64", "complex128"])
+    real, cplx = _run(tmp_path, ["float64", "complex128"], slow_index=True)
     assert real["misses"] == 1 and cplx["misses"] == 1  # different signatures: both compile
     (both,) = _run(tmp_path, ["float64,complex128"])
     assert both["misses"] == 0 and both["hits"] == 2
