@@ -154,10 +154,11 @@ def _compile_helper(args):
 
     from .jit.cache import kernels_cached
     from .kernels.adjoint import sweep
+    from .kernels.steps import run_steps
 
     groups = (["statics"] if not args.no_aero else []) + (["adjoint"] if not args.no_timing
                                                           else [])
-    if not groups or kernels_cached(*(() if args.no_timing else (sweep,))):
+    if not groups or kernels_cached(run_steps, *(() if args.no_timing else (sweep,))):
         return contextlib.nullcontext()
     from .morphing.warmup import helper
 

@@ -91,7 +91,13 @@ def test_the_main_command_starts_a_helper_on_first_use_only(monkeypatch, no_aero
     started = []
     monkeypatch.setattr(mw, "helper", lambda g: started.append(list(g)) or
                         contextlib.nullcontext())
-    monkeypatch.setattr(cache, "kernels_cached", lambda *k: cached)
+    from morphlab.kernels.adjoint import sweep
+    from morphlab.kernels.steps import run_steps
+
+    asked = []
+    monkeypatch.setattr(cache, "kernels_cached", lambda *k: asked.append(k) or cached)
     with cli._compile_helper(argparse.Namespace(no_aero=no_aero, no_timing=no_timing)):
         pass
     assert started == ([] if groups is None else [groups])
+    if not (no_aero and no_timing):  # the time loop always asked, the adjoint with the timing
+        assert asked == [(run_steps,) + (() if no_timing else (sweep,))]
