@@ -30,7 +30,7 @@ from numba.extending import overload
 
 from ._jit import inner, kernel
 from .assemble import matrix
-from .csc import residual, subtract_product
+from .csc import residual, subtract_product, subtract_products_transposed
 from .ffrf_adjoint import data_gradient, stiffness_share
 from .newton import Factors, solve_factored_transposed
 from .pseudo import explicit, load
@@ -257,8 +257,8 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     h, cqa, cqg, cva, cvg = sc.pc[0], sc.pc[1], sc.pc[2], sc.pc[3], sc.pc[4]
     gan, ggn = sc.upd[1], sc.upd[2]
     _design_share(a, M, T, sc, new, old, k)
-    subtract_product(Dq, csc.indices, csc.indptr, n_dof, a.mu, a.Bq, True)  # adjoint of q_hat
-    subtract_product(Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bv, True)  # and of v_hat
+    # the adjoints of q_hat and v_hat
+    subtract_products_transposed(Dq, Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bq, a.Bv)
     if k == 0:
         return True
     for i in range(n_dof):
@@ -277,8 +277,8 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     if sc.has_old:  # the paper's weighting: the old level's share
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
         matrix(M, old, sc.w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
-        subtract_product(a.mats[4], csc.indices, csc.indptr, n_dof, a.mu, a.Bq, True)
-        subtract_product(a.mats[5], csc.indices, csc.indptr, n_dof, a.mu, a.Bv, True)
+        subtract_products_transposed(a.mats[4], a.mats[5], csc.indices, csc.indptr, n_dof,
+                                     a.mu, a.Bq, a.Bv)
         for i in range(n):
             for c in range(m):
                 a.r[i, c] = 0.0

@@ -1,9 +1,11 @@
 """Products with a sparse matrix in compressed-column form (CSC: ``data``, ``indices``,
 ``indptr``), plain or transposed, for the right-hand sides and the refinement residuals of the
-direct (``A x``) and adjoint (``A^T x``) sensitivities. One loop serves both: entry ``p`` of
-column ``j`` couples row ``indices[p]`` and column ``j``, and only which of the two is read and
-which is written changes. The choice is a branch around the innermost loop: choosing the two
-indices per entry instead (a pair of selects) made the adjoint's sweep 8 % slower.
+direct (``A x``) and adjoint (``A^T x``) sensitivities. Entry ``p`` of column ``j`` couples
+row ``indices[p]`` and column ``j``. The plain product scatters column ``j`` into the rows; the
+transposed one gathers column ``j`` into one sum per right-hand side, held in a register (a
+sum kept in ``out`` makes every term wait for the store of the one before: the adjoint's sweep
+spent most of its products there), and :func:`subtract_products_transposed` forms two such
+sums at once for two matrices of one pattern.
 """
 
 import numpy as np
@@ -17,15 +19,39 @@ def subtract_product(data, indices, indptr, n_cols, x, out, transposed):
     x`` (True) for the CSC matrix ``A`` and ``x``, ``out`` (n, m)."""
     m = x.shape[1]
     for j in range(n_cols):
-        for p in range(indptr[j], indptr[j + 1]):
-            row = indices[p]
-            aij = data[p]
-            if transposed:
-                for i in range(m):
-                    out[j, i] -= aij * x[row, i]
-            else:
+        p0, p1 = indptr[j], indptr[j + 1]
+        if transposed:
+            for i in range(m):
+                acc = out[j, i]
+                for p in range(p0, p1):
+                    acc -= data[p] * x[indices[p], i]
+                out[j, i] = acc
+        else:
+            for p in range(p0, p1):
+                row = indices[p]
+                aij = data[p]
                 for i in range(m):
                     out[row, i] -= aij * x[j, i]
+
+
+@inner
+def subtract_products_transposed(A1, A2, indices, indptr, n_cols, x, out1, out2):
+    """``out1[:n_cols] -= A1[:, :n_cols]^T x`` and ``out2[:n_cols] -= A2[:, :n_cols]^T x`` for
+    two CSC matrices of one pattern (``A1``, ``A2`` their values) in one pass: the two sums of
+    an entry of the result are independent and overlap. Each equals
+    :func:`subtract_product`'s, term for term in the same order."""
+    m = x.shape[1]
+    for j in range(n_cols):
+        p0, p1 = indptr[j], indptr[j + 1]
+        for i in range(m):
+            a1 = out1[j, i]
+            a2 = out2[j, i]
+            for p in range(p0, p1):
+                xr = x[indices[p], i]
+                a1 -= A1[p] * xr
+                a2 -= A2[p] * xr
+            out1[j, i] = a1
+            out2[j, i] = a2
 
 
 @kernel

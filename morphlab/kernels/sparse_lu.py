@@ -26,7 +26,7 @@ column ``j`` in increasing row order, which is a valid order for a lower-triangu
 
 import numpy as np
 
-from ._jit import kernel
+from ._jit import inner, kernel
 
 
 @kernel
@@ -175,27 +175,53 @@ def solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, co
     """Solve the transposed system ``A^T x = b`` with the factors of :func:`refactor`, ``b``
     (n, m) into ``x`` (n, m) through the scratch ``work`` (n, m). :func:`solve` applies
     ``A^-1 = C (L U)^-1 R`` (``R``: rows picked by ``row_from`` and scaled, ``C``: scaled and
-    scattered to ``col_to``), so ``A^-T = R^T U^-T L^-T C^T``."""
+    scattered to ``col_to``), so ``A^-T = R^T U^-T L^-T C^T``.
+
+    A column of ``U`` (``L``) is a row of ``U^T`` (``L^T``): the transposed solves gather an
+    inner product per unknown, where :func:`solve` scatters. The sums run in registers, two
+    right-hand sides at a time (:func:`_solve_pair`)."""
     n = Lp.shape[0] - 1
     m = b.shape[1]
     for k in range(n):
         for s in range(m):
             work[k, s] = b[col_to[k], s] * col_scale[k]
-    for j in range(n):  # U^T y = work: forward, column j of U is row j of U^T
-        for p in range(Up[j], Up[j + 1]):
-            i = Ui[p]
-            uij = Ux[p]
-            for s in range(m):
-                work[j, s] -= uij * work[i, s]
-        inv = 1.0 / Ud[j]
-        for s in range(m):
-            work[j, s] *= inv
-    for j in range(n - 1, -1, -1):  # L^T z = y: backward, unit diagonal
-        for p in range(Lp[j], Lp[j + 1]):
-            i = Li[p]
-            lij = Lx[p]
-            for s in range(m):
-                work[j, s] -= lij * work[i, s]
+    for s in range(0, m, 2):
+        _solve_pair(Lp, Li, Lx, Up, Ui, Ux, Ud, work, s, s + 1 < m)
     for k in range(n):
         for s in range(m):
             x[row_from[k], s] = work[k, s] * row_scale[k]
+
+
+@inner
+def _solve_pair(Lp, Li, Lx, Up, Ui, Ux, Ud, work, s0, two):
+    """``U^T y = work``, then ``L^T z = y`` in place for the columns ``s0`` and (``two``)
+    ``s0 + 1`` of ``work``. Each unknown's sum is accumulated in a register, in the order of
+    the stored entries, for both columns at once: accumulated in ``work`` itself, every term
+    waited for the store of the one before (the adjoint's sweep spent a third of its solve
+    there); two independent sums overlap. Without ``two`` the second sum repeats the first's
+    column and is not stored."""
+    n = Lp.shape[0] - 1
+    s1 = s0 + 1 if two else s0
+    for j in range(n):  # U^T y = work: forward, column j of U is row j of U^T
+        a0 = work[j, s0]
+        a1 = work[j, s1]
+        for p in range(Up[j], Up[j + 1]):
+            i = Ui[p]
+            u = Ux[p]
+            a0 -= u * work[i, s0]
+            a1 -= u * work[i, s1]
+        inv = 1.0 / Ud[j]
+        work[j, s0] = a0 * inv
+        if two:
+            work[j, s1] = a1 * inv
+    for j in range(n - 1, -1, -1):  # L^T z = y: backward, unit diagonal
+        a0 = work[j, s0]
+        a1 = work[j, s1]
+        for p in range(Lp[j], Lp[j + 1]):
+            i = Li[p]
+            lij = Lx[p]
+            a0 -= lij * work[i, s0]
+            a1 -= lij * work[i, s1]
+        work[j, s0] = a0
+        if two:
+            work[j, s1] = a1
