@@ -11,8 +11,9 @@ tests/test_sensitivity_direct.py.
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from numba import njit
 
-from morphlab.kernels.csc import residual
+from morphlab.kernels.csc import residual, subtract_product, subtract_products_transposed
 from morphlab.kernels.direct import store
 from morphlab.solve.scheme import (
     INITIAL,
@@ -81,6 +82,41 @@ def test_csc_residual_is_b_minus_Ax(transposed):
     np.testing.assert_allclose(r, expected, rtol=1e-13, atol=1e-13)
     assert rr == pytest.approx(np.linalg.norm(expected), rel=1e-13)
     assert bb == pytest.approx(np.linalg.norm(b), rel=1e-13)
+
+
+@njit
+def _products(A1, A2, indices, indptr, n_cols, x, out1, out2, paired):
+    if paired:
+        subtract_products_transposed(A1, A2, indices, indptr, n_cols, x, out1, out2)
+    else:
+        subtract_product(A1, indices, indptr, n_cols, x, out1, True)
+        subtract_product(A2, indices, indptr, n_cols, x, out2, True)
+
+
+@pytest.mark.parametrize("m", [1, 3])
+def test_paired_transposed_products_equal_the_single_ones(m):
+    """The adjoint's two products with one pattern in one pass: bit for bit the single
+    products (the same terms in the same order), and ``out[:n_cols] -= A[:, :n_cols]^T x``
+    against SciPy (a nonsymmetric matrix, fewer columns than rows)."""
+    rng = np.random.default_rng(9)
+    A = (sp.random(40, 40, density=0.15, random_state=7, format="csc") + sp.eye(40)).tocsc()
+    A2 = A.copy()
+    A2.data = rng.normal(size=A.nnz)
+    ind, ptr = A.indices.astype(np.int64), A.indptr.astype(np.int64)
+    x = rng.normal(size=(40, m))
+    start = rng.normal(size=(40, m))
+    n_cols = 31
+    outs = {}
+    for paired in (False, True):
+        o1, o2 = start.copy(), start.copy()
+        _products(A.data, A2.data, ind, ptr, n_cols, x, o1, o2, paired)
+        outs[paired] = (o1, o2)
+    np.testing.assert_array_equal(outs[True][0], outs[False][0])
+    np.testing.assert_array_equal(outs[True][1], outs[False][1])
+    for M, o in zip((A, A2), outs[True]):
+        expected = start.copy()
+        expected[:n_cols] -= M[:, :n_cols].T @ x
+        np.testing.assert_allclose(o, expected, rtol=1e-13, atol=1e-13)
 
 
 def test_two_level_buffer_of_the_algorithmic_acceleration():
