@@ -65,16 +65,18 @@ def test_initial_entry_sets_accelerations_and_multipliers_only():
     assert not DV.any()
 
 
+@pytest.mark.parametrize("m", [2, 6])
 @pytest.mark.parametrize("transposed", [False, True])
-def test_csc_residual_is_b_minus_Ax(transposed):
-    """The one CSC loop reads and writes the right ends of each entry: against SciPy's product
-    with a nonsymmetric matrix, so that ``A`` and ``A^T`` differ (round-off of 40-term sums)."""
+def test_csc_residual_is_b_minus_Ax(transposed, m):
+    """The CSC loops read and write the right ends of each entry: against SciPy's product
+    with a nonsymmetric matrix, so that ``A`` and ``A^T`` differ (round-off of 40-term sums);
+    the transposed sums in registers (``m`` 2) and in ``r`` (6)."""
     rng = np.random.default_rng(5)
     A = sp.random(40, 40, density=0.15, random_state=6, format="csc") + sp.eye(40)
     A = A.tocsc()
     assert abs(A - A.T).max() > 0.1
-    x = rng.normal(size=(40, 6))
-    b = rng.normal(size=(40, 6))
+    x = rng.normal(size=(40, m))
+    b = rng.normal(size=(40, m))
     r = np.empty_like(b)
     expected = b - (A.T @ x if transposed else A @ x)
     rr, bb = residual(A.data, A.indices.astype(np.int64), A.indptr.astype(np.int64), x, b, r,
@@ -93,11 +95,12 @@ def _products(A1, A2, indices, indptr, n_cols, x, out1, out2, paired):
         subtract_product(A2, indices, indptr, n_cols, x, out2, True)
 
 
-@pytest.mark.parametrize("m", [1, 3])
+@pytest.mark.parametrize("m", [1, 3, 7])
 def test_paired_transposed_products_equal_the_single_ones(m):
     """The adjoint's two products with one pattern in one pass: bit for bit the single
     products (the same terms in the same order), and ``out[:n_cols] -= A[:, :n_cols]^T x``
-    against SciPy (a nonsymmetric matrix, fewer columns than rows)."""
+    against SciPy (a nonsymmetric matrix, fewer columns than rows), for right-hand sides
+    summed in registers (1, 3) and in ``out`` (7)."""
     rng = np.random.default_rng(9)
     A = (sp.random(40, 40, density=0.15, random_state=7, format="csc") + sp.eye(40)).tocsc()
     A2 = A.copy()

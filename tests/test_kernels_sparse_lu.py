@@ -137,9 +137,10 @@ def test_step_factorization_renews_the_row_order_when_a_pivot_fails():
         np.testing.assert_allclose(lu.solve(B), np.linalg.solve(Ad, B), rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(lu.solve_transposed(B), np.linalg.solve(Ad.T, B), rtol=1e-9,
                                    atol=1e-12)
-        # the transposed solve takes its right-hand sides in pairs: an odd count's last one
-        # alone, and one alone, too
-        for rhs in (B[:, :3], b):
+        # the transposed solve takes a few right-hand sides in pairs (an odd count's last one
+        # alone, one alone too), more in one pass
+        wide = np.hstack([B, B[:, :2] * 1j])
+        for rhs in (B[:, :3], b, wide):
             np.testing.assert_allclose(lu.solve_transposed(rhs), np.linalg.solve(Ad.T, rhs),
                                        rtol=1e-9, atol=1e-12)
         return lu

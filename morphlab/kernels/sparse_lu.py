@@ -28,6 +28,13 @@ import numpy as np
 
 from ._jit import inner, kernel
 
+#: Transposed solves of at most this many right-hand sides sum in registers, two at a time
+#: (:func:`solve_transposed`); measured on factors of 7e4 and 4e6 entries, the register sums
+#: take a quarter to half the time of the sums in memory for one or two right-hand sides,
+#: half to as long for three or four, up to 1.5 times as long for five (a pass over the
+#: factors per pair).
+REGISTER_RHS = 4
+
 
 @kernel
 def symbolic(n, indices, indptr, perm_r):
@@ -178,15 +185,35 @@ def solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, co
     scattered to ``col_to``), so ``A^-T = R^T U^-T L^-T C^T``.
 
     A column of ``U`` (``L``) is a row of ``U^T`` (``L^T``): the transposed solves gather an
-    inner product per unknown, where :func:`solve` scatters. The sums run in registers, two
-    right-hand sides at a time (:func:`_solve_pair`)."""
+    inner product per unknown, where :func:`solve` scatters. Summed in ``work`` itself, each
+    term waits for the store of the one before, unless several right-hand sides interleave
+    their sums: up to :data:`REGISTER_RHS` right-hand sides (an adjoint's responses) are solved
+    two at a time with the sums in registers (:func:`_solve_pair`), more in one pass over the
+    factors with the sums in ``work``. Either way each sum adds its terms in the same order."""
     n = Lp.shape[0] - 1
     m = b.shape[1]
     for k in range(n):
         for s in range(m):
             work[k, s] = b[col_to[k], s] * col_scale[k]
-    for s in range(0, m, 2):
-        _solve_pair(Lp, Li, Lx, Up, Ui, Ux, Ud, work, s, s + 1 < m)
+    if m <= REGISTER_RHS:
+        for s in range(0, m, 2):
+            _solve_pair(Lp, Li, Lx, Up, Ui, Ux, Ud, work, s, s + 1 < m)
+    else:
+        for j in range(n):  # U^T y = work: forward, column j of U is row j of U^T
+            for p in range(Up[j], Up[j + 1]):
+                i = Ui[p]
+                uij = Ux[p]
+                for s in range(m):
+                    work[j, s] -= uij * work[i, s]
+            inv = 1.0 / Ud[j]
+            for s in range(m):
+                work[j, s] *= inv
+        for j in range(n - 1, -1, -1):  # L^T z = y: backward, unit diagonal
+            for p in range(Lp[j], Lp[j + 1]):
+                i = Li[p]
+                lij = Lx[p]
+                for s in range(m):
+                    work[j, s] -= lij * work[i, s]
     for k in range(n):
         for s in range(m):
             x[row_from[k], s] = work[k, s] * row_scale[k]

@@ -240,10 +240,9 @@ class Auto(Strategy):
     (the direct method's solves grow with the variables, the adjoint's with the responses; the
     direct method evaluates each variable's explicit part at every step, the adjoint those of
     the variables that are not sections or materials, which share one pass a step). The
-    default is measured (BENCHMARKS.md, cases morphing, variables and pendulum): with 3
-    responses the adjoint is as fast as the direct method at 1 variable and faster from 5 (the
-    morphing study's 5 variables: 1.62 against 1.76 primal runs), on the flexible pendulum
-    (32 variables, 1 response) 1.7 against 4.0."""
+    default is measured (BENCHMARKS.md, cases morphing, variables and pendulum: the adjoint
+    faster from about one variable per response, on the 240-element skin with 3 responses
+    from 3 variables, on the morphing study's 5 and the flexible pendulum's 32)."""
 
     crossover: float = 0.5
     direct: Direct = field(default_factory=Direct)
