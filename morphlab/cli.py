@@ -140,29 +140,34 @@ def _morphing(args, interrupts: _Interrupts) -> str:
         _check_design(overrides)
         with _compile_helper(args):
             report = _study(args, overrides, staging, interrupts)
+        if not overrides:  # the defaults' kernels, which the helper would compile: a
+            from .morphing.warmup import mark_compiled  # later first use needs none
+
+            mark_compiled(_groups(args))
         _publish(staging, args.out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return report
 
 
+def _groups(args) -> list:
+    """The kernel groups (``morphlab.morphing.warmup.GROUPS``) the command runs."""
+    return (["time loop", "direct"] + ([] if args.no_timing else ["direct-fd", "adjoint"])
+            + ([] if args.no_aero else ["statics"]))
+
+
 def _compile_helper(args):
-    """On a first use (the time loop or the adjoint not cached), a second process compiles
-    the kernels the command needs last (the adjoint of the timing, the flight loads' statics)
-    while this one compiles and runs the study (morphlab.morphing.warmup); else nothing."""
+    """On a first use (the cache not marked as holding them), a second process compiles the
+    kernels the command needs last (the adjoint of the timing, the flight loads' statics)
+    while this one compiles and runs the study (``morphlab.morphing.warmup``); else
+    nothing."""
     import contextlib
 
-    from .jit.cache import kernels_cached
-    from .kernels.adjoint import sweep
-    from .kernels.steps import run_steps
+    from .morphing import warmup
 
-    groups = (["statics"] if not args.no_aero else []) + (["adjoint"] if not args.no_timing
-                                                          else [])
-    if not groups or kernels_cached(run_steps, *(() if args.no_timing else (sweep,))):
-        return contextlib.nullcontext()
-    from .morphing.warmup import helper
-
-    return helper(groups)
+    held = warmup.compiled_groups()
+    groups = [g for g in ("statics", "adjoint") if g in _groups(args) and g not in held]
+    return warmup.helper(groups) if groups else contextlib.nullcontext()
 
 
 def _study(args, overrides: dict, staging: str, interrupts: _Interrupts) -> str:

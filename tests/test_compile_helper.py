@@ -69,35 +69,108 @@ def test_the_statics_group_compiles_what_the_flight_loads_solve_with(tmp_path):
     measured = json.loads(out.stdout.strip().splitlines()[-1])
     assert measured["iterations"] >= 1
     assert measured["compiled"] == []
+    # the warm-up marked its group in that cache, for the kernels it compiled
+    held = subprocess.run([sys.executable, "-c", "from morphlab.morphing import warmup; "
+                           "print(sorted(warmup.compiled_groups()))"], env=env, check=True,
+                          capture_output=True, text=True, timeout=600)
+    assert held.stdout.strip().splitlines()[-1] == "['statics']"
 
 
-@pytest.mark.parametrize("no_aero, no_timing, cached, groups", [
-    (False, False, False, ["statics", "adjoint"]),
-    (True, False, False, ["adjoint"]),
-    (False, True, False, ["statics"]),
-    (True, True, False, None),
-    (False, False, True, None),
+@pytest.mark.parametrize("no_aero, no_timing, held, groups", [
+    (False, False, set(), ["statics", "adjoint"]),
+    (True, False, set(), ["adjoint"]),
+    (False, True, set(), ["statics"]),
+    (True, True, set(), None),
+    (False, False, {"statics", "adjoint"}, None),
+    # a cache that holds the adjoint (a warm-up without the flight loads): the statics alone
+    (False, False, {"time loop", "direct", "adjoint"}, ["statics"]),
+    # kernels of other groups do not spare the helper its own
+    (False, False, {"time loop", "direct", "direct-fd"}, ["statics", "adjoint"]),
 ])
-def test_the_main_command_starts_a_helper_on_first_use_only(monkeypatch, no_aero, no_timing,
-                                                           cached, groups):
+def test_the_main_command_starts_a_helper_for_the_groups_not_held(monkeypatch, no_aero,
+                                                                  no_timing, held, groups):
     """``morphlab morphing`` starts the helper for the groups it will need (the adjoint only
-    with the timing, the statics only with the flight loads) when they are not cached."""
+    with the timing, the statics only with the flight loads) that the cache is not marked as
+    holding."""
     import argparse
     import contextlib
 
     from morphlab import cli
-    from morphlab.jit import cache
 
     started = []
     monkeypatch.setattr(mw, "helper", lambda g: started.append(list(g)) or
                         contextlib.nullcontext())
-    from morphlab.kernels.adjoint import sweep
-    from morphlab.kernels.steps import run_steps
-
-    asked = []
-    monkeypatch.setattr(cache, "kernels_cached", lambda *k: asked.append(k) or cached)
+    monkeypatch.setattr(mw, "compiled_groups", lambda: set(held))
     with cli._compile_helper(argparse.Namespace(no_aero=no_aero, no_timing=no_timing)):
         pass
     assert started == ([] if groups is None else [groups])
-    if not (no_aero and no_timing):  # the time loop always asked, the adjoint with the timing
-        assert asked == [(run_steps,) + (() if no_timing else (sweep,))]
+
+
+def test_the_mark_adds_groups_and_holds_only_for_the_kernels_it_was_made_for(tmp_path,
+                                                                            monkeypatch):
+    """The mark beside the cache: groups add up; a mark of other kernels (another stamp: a
+    source changed, another Numba or processor), an unreadable one or none hold nothing."""
+    from morphlab.jit import cache
+
+    monkeypatch.setattr(cache, "kernel_cache_dir", lambda: str(tmp_path))
+    assert mw.compiled_groups() == set()
+    mw.mark_compiled(["time loop", "adjoint"])
+    mw.mark_compiled(["statics"])
+    assert mw.compiled_groups() == {"time loop", "adjoint", "statics"}
+    assert not [f for f in os.listdir(tmp_path) if f.endswith(".tmp")]
+    with pytest.raises(ValueError, match="unknown kernel groups"):
+        mw.mark_compiled(["adjoint", "sweep"])
+    real = mw._stamp()
+    monkeypatch.setattr(mw, "_stamp", lambda: real + "0")
+    assert mw.compiled_groups() == set()
+    mw.mark_compiled(["direct"])  # a mark for the new kernels starts afresh
+    assert mw.compiled_groups() == {"direct"}
+    (tmp_path / mw.MARK).write_text("{not json")
+    assert mw.compiled_groups() == set()
+
+
+def test_a_changed_kernel_source_changes_the_stamp(tmp_path, monkeypatch):
+    """The stamp follows the kernels' sources (Numba compiles again when one changes): the
+    modification time of one of them changes it."""
+    from morphlab import kernels
+
+    folder = tmp_path / "kernels"
+    folder.mkdir()
+    (folder / "__init__.py").write_text("")
+    (folder / "a.py").write_text("x = 1\n")
+    monkeypatch.setattr(kernels, "__file__", str(folder / "__init__.py"))
+    before = mw._stamp()
+    assert mw._stamp() == before
+    st = os.stat(folder / "a.py")
+    os.utime(folder / "a.py", ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    assert mw._stamp() != before
+
+
+@pytest.mark.parametrize("overrides, marked", [([], True), (["x_A=100"], False)])
+def test_the_main_command_marks_its_groups_when_it_has_run_the_defaults(
+        tmp_path, monkeypatch, overrides, marked):
+    """After a finished run on the defaults the command marks the groups it ran; a run with
+    ``--set`` (other kernels, perhaps) or a failed one marks nothing."""
+    import contextlib
+
+    from morphlab import cli
+
+    marks = []
+    monkeypatch.setattr(mw, "mark_compiled", lambda g: marks.append(list(g)))
+    monkeypatch.setattr(cli, "_compile_helper", lambda args: contextlib.nullcontext())
+    monkeypatch.setattr(cli, "_check_design", lambda overrides: None)
+    monkeypatch.setattr(cli, "_study", lambda *a: "report")
+    argv = ["morphing", "--out", str(tmp_path / "out"), "--no-aero"]
+    argv += [a for o in overrides for a in ("--set", o)]
+    args = cli._parser().parse_args(argv)
+    assert cli._morphing(args, cli._Interrupts()) == "report"
+    assert marks == ([["time loop", "direct", "direct-fd", "adjoint"]] if marked else [])
+
+    def fail(*a):
+        raise RuntimeError("the study failed")
+
+    monkeypatch.setattr(cli, "_study", fail)
+    with pytest.raises(RuntimeError):
+        cli._morphing(cli._parser().parse_args(["morphing", "--out", str(tmp_path / "o2")]),
+                      cli._Interrupts())
+    assert len(marks) == (1 if marked else 0)

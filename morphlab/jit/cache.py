@@ -8,8 +8,6 @@ about a second.
 
 from __future__ import annotations
 
-import os
-
 from ..kernels.steps import run_steps
 
 
@@ -19,16 +17,3 @@ def kernel_cache_dir() -> str | None:
         return run_steps._cache._cache_path
     except AttributeError:  # pragma: no cover - another Numba layout
         return None
-
-
-def kernels_cached(*kernels) -> bool:
-    """Has each of ``kernels`` (default: the time loop, the last kernel a run compiles) been
-    compiled in this process or cached for some kind of model already?"""
-    for k in kernels or (run_steps,):
-        try:
-            path = k._cache._cache_file._index_path
-        except AttributeError:  # pragma: no cover - another Numba layout: assume cached
-            continue
-        if not (k.signatures or os.path.exists(path)):
-            return False
-    return True
