@@ -134,16 +134,16 @@ def _publish(staging: str, out: str) -> None:
 
 
 def _morphing(args, interrupts: _Interrupts) -> str:
+    from .morphing import warmup
+
     overrides = _overrides(args.set or [])
     staging = _staging(args.out)
     try:
         _check_design(overrides)
         with _compile_helper(args):
             report = _study(args, overrides, staging, interrupts)
-        if not overrides:  # the defaults' kernels, which the helper would compile: a
-            from .morphing.warmup import mark_compiled  # later first use needs none
-
-            mark_compiled(_groups(args))
+        if not overrides:  # the defaults' kernels are cached: a later first use needs no helper
+            warmup.mark_compiled(_groups(args))
         _publish(staging, args.out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)

@@ -222,11 +222,9 @@ def solve_transposed(Lp, Li, Lx, Up, Ui, Ux, Ud, row_from, row_scale, col_to, co
 @inner
 def _solve_pair(Lp, Li, Lx, Up, Ui, Ux, Ud, work, s0, two):
     """``U^T y = work``, then ``L^T z = y`` in place for the columns ``s0`` and (``two``)
-    ``s0 + 1`` of ``work``. Each unknown's sum is accumulated in a register, in the order of
-    the stored entries, for both columns at once: accumulated in ``work`` itself, every term
-    waited for the store of the one before (the adjoint's sweep spent a third of its solve
-    there); two independent sums overlap. Without ``two`` the second sum repeats the first's
-    column and is not stored."""
+    ``s0 + 1`` of ``work``: each unknown's two sums in registers, in the order of the stored
+    entries (:func:`solve_transposed` says why). Without ``two`` the second sum repeats the
+    first's column and is not stored."""
     n = Lp.shape[0] - 1
     s1 = s0 + 1 if two else s0
     for j in range(n):  # U^T y = work: forward, column j of U is row j of U^T

@@ -98,14 +98,17 @@ def compiled_groups() -> set:
     warm-up or main command with the current kernels (:func:`_stamp`); empty when there is no
     mark, it is unreadable or it was made for other kernels."""
     path = _mark_path()
-    if path is None:
-        return set()
+    return set() if path is None else _held(path, _stamp())
+
+
+def _held(path: str, stamp: str) -> set:
+    """The groups the mark at ``path`` holds for kernels of ``stamp`` (:func:`compiled_groups`)."""
     try:
         with open(path, encoding="utf-8") as fh:
             data = json.load(fh)
     except (OSError, ValueError):
         return set()
-    if not isinstance(data, dict) or data.get("stamp") != _stamp():
+    if not isinstance(data, dict) or data.get("stamp") != stamp:
         return set()
     return set(data.get("groups") or ()) & set(GROUPS)
 
@@ -119,7 +122,8 @@ def mark_compiled(groups) -> None:
     path = _mark_path()
     if path is None:
         return
-    data = {"stamp": _stamp(), "groups": sorted(compiled_groups() | set(groups))}
+    stamp = _stamp()
+    data = {"stamp": stamp, "groups": sorted(_held(path, stamp) | set(groups))}
     tmp = f"{path}.{os.getpid()}.tmp"
     try:
         with open(tmp, "w", encoding="utf-8") as fh:
