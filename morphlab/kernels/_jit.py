@@ -10,6 +10,15 @@
 
 ``nogil=True`` (:func:`kernel` with ``nogil``) releases the GIL while a long kernel runs.
 
+What a kernel's compile costs includes its callees' code: Numba links the code of every kernel
+a kernel calls into the caller's own module and emits it there again (each cached kernel is
+self-contained), so a kernel that only forwards to others emits all of them once more, and
+every signature compiled for Python (``kernel``) or for kernels (``inner``) is a separate
+emission. A level between a Python entry and the per-item kernels pays only where it is the
+one caller of a large closure; a second entry over the same closure (a Python-callable twin
+of a step the compiled loop takes) costs about as much as the closure's emission, not as
+little as its wrapper.
+
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
 compiles a signature of a kernel holding a lock file for that signature, and a second
