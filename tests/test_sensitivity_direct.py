@@ -329,6 +329,29 @@ def test_chunking_does_not_change_the_sensitivities(monkeypatch, name, scheme):
 
 
 @pytest.mark.parametrize("name", CASES)
+def test_steps_solved_from_python_give_the_sensitivities_of_compiled_steps(name):
+    """With every step solved from Python (``compiled_newton=False``) the sensitivity steps
+    run as the initial solve's do in a compiled run: the direct method keeps each step until
+    the end of the run and forms its right-hand sides by the compiled chunk on a record of
+    that step, the adjoint sweeps each step on such a record, and neither run has a compiled
+    record to take the types from. The primal is the same bit for bit
+    (``tests/test_kernels_newton.py``), the kernels are the same and the Python factor solves
+    with the compiled loop's factors by the same kernels: the gradients are the same bit for
+    bit, in both variants, on dense and sparse factors."""
+    from morphlab.sensitivity import Adjoint
+
+    build, p0, responses = responses_for(name)
+    for dense_max in (1000, 0):
+        for method in (Direct(), EXACT, Adjoint(), Adjoint(reuse=False)):
+            resp = responses if isinstance(method, Direct) else {  # the adjoint's: with a vjp
+                k: f for k, f in responses.items() if hasattr(f, "vjp")}
+            fast, slow = (ml.sensitivities(build, p0, resp, method=method,
+                                           dense_max=dense_max, compiled_newton=compiled,
+                                           **RUN) for compiled in (True, False))
+            assert slow.gradients == fast.gradients, (name, dense_max, method)
+
+
+@pytest.mark.parametrize("name", CASES)
 def test_reuse_variant_is_exact_to_the_newton_tolerance(name):
     """The default variant solves each step's sensitivities with the primal's last Newton
     matrix and blocks, formed at the iterate before the last correction: its error is of the

@@ -28,7 +28,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from ._jit import inner, kernel
+from ._jit import inlined, inner, kernel
 from .assemble import matrix
 from .csc import residual, subtract_product, subtract_products_transposed
 from .ffrf_adjoint import data_gradient, stiffness_share
@@ -245,11 +245,15 @@ def refinement_residual(a, csc):
     return residual(a.mats[0], csc.indices, csc.indptr, a.mu, a.zb, a.r, True)
 
 
-@kernel
+@inlined
 def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     """The rest of step ``k`` once ``a.mu`` holds ``μ``: the design's share (the step from the
     state ``old`` to ``new``), the adjoints of the predictors (``Dq``, ``Dv`` the step's,
-    (nnz,)) and of the previous state. Returns True at the initial solve (``k == 0``)."""
+    (nnz,)) and of the previous state. Returns True at the initial solve (``k == 0``).
+
+    Inlined into :func:`sweep`, its one caller (a step solved from Python goes through
+    :func:`sweep` too, with ``solved``): compiled as a kernel of its own, its code and that of
+    everything it calls would be emitted once more (``_jit``'s docstring)."""
     n_dof = a.Bq.shape[0]
     n_con = a.Bl.shape[0]
     n = n_dof + n_con
@@ -293,34 +297,40 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
 
 
 @kernel(nogil=True)
-def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine):
+def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved):
     """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
     factors, fills and states recorded in ``K`` (:class:`Keep`); ``F``: a factor of the run,
     for the patterns; ``refine``: None for the reuse variant (then the exact variant's code is
-    not compiled), else the exact variant's number of refinement sweeps. Returns True when it
+    not compiled), else the exact variant's number of refinement sweeps. ``solved``: the time
+    index of a step whose ``μ`` the caller has solved already (a step solved from Python: its
+    :func:`begin`, solve and, in the exact variant, ``a.mats`` and refinement are the
+    caller's; its factor fields in ``K`` are not read), -1 for none. Returns True when it
     reached the initial solve."""
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):
-        begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
         j = k - K.k0[0]
         new, old = kept_state(K, j + 1), kept_state(K, j)
-        Fk = kept_factor(K, F, j)
-        solve_factored_transposed(a.mu, a.work, Fk)
+        if k != solved:
+            begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc,
+                  k)
+            Fk = kept_factor(K, F, j)
+            solve_factored_transposed(a.mu, a.work, Fk)
+            if refine is not None:
+                exact_matrices(a, M, T, sc, new, k)
+                if refine > 0:
+                    for _ in range(refine):
+                        refinement_residual(a, csc)
+                        solve_factored_transposed(a.r, a.work, Fk)
+                        for i in range(n):
+                            for c in range(m):
+                                a.mu[i, c] += a.r[i, c]
+                    rr, bb = refinement_residual(a, csc)
+                    a.refined[k] = rr / max(bb, 1e-300)
         if refine is None:
             Dq, Dv = K.D[j, 0], K.D[j, 1]
         else:
-            exact_matrices(a, M, T, sc, new, k)
             Dq, Dv = a.mats[1], a.mats[2]
-            if refine > 0:
-                for _ in range(refine):
-                    refinement_residual(a, csc)
-                    solve_factored_transposed(a.r, a.work, Fk)
-                    for i in range(n):
-                        for c in range(m):
-                            a.mu[i, c] += a.r[i, c]
-                rr, bb = refinement_residual(a, csc)
-                a.refined[k] = rr / max(bb, 1e-300)
         if finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
             return True
     return False

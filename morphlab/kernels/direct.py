@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import inner, kernel
+from ._jit import inlined, inner, kernel
 from .adjoint import kept_factor, kept_state
 from .assemble import matrix
 from .csc import residual, subtract_product
@@ -150,13 +150,18 @@ def store(DQ, DV, DA, DG, DL, sc, x, k):
             DL[i, k % lev[4], r] = x[n_dof + r, i] * scale
 
 
-@kernel
+@inlined
 def prepare(d, M, T, sc, Dq, Dv, new, old, k, refine):
     """The right-hand sides of step ``k`` (from the state ``old`` to ``new``) into ``d.rhs``
     and ``d.x`` (which the caller then solves in place), with the split matrices of the
     variant (module docstring) in ``d.mats``: ``Dq``, ``Dv`` (nnz,) those of the step's last
     Newton fill (the reuse variant's). ``refine``: None for the reuse variant (then the exact
-    variant's code is not compiled), else the exact variant's number of refinement sweeps."""
+    variant's code is not compiled), else the exact variant's number of refinement sweeps.
+
+    Inlined into :func:`chunk`, its one caller (a step solved from Python takes its
+    right-hand sides from :func:`chunk` too, with ``rhs_only``): compiled as a kernel of its
+    own, its code and that of everything it calls would be emitted once more (``_jit``'s
+    docstring)."""
     C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     D = d.mats
     if refine is None:
@@ -183,17 +188,21 @@ def refinement_residual(d):
 
 
 @kernel(nogil=True)
-def chunk(d, M, T, sc, F, K, k0, k1, refine):
+def chunk(d, M, T, sc, F, K, k0, k1, refine, rhs_only):
     """The sensitivities of the recorded steps ``k0 .. k1 - 1`` (``K``:
     :class:`~morphlab.kernels.adjoint.Keep`; ``F``: a factor of the run, for the patterns):
     right-hand sides, one solve with the step's factors for every variable, refinement (exact
     variant) and the update, step by step (module docstring). ``refine`` as for
-    :func:`prepare`."""
+    :func:`prepare`. ``rhs_only``: the right-hand sides of step ``k0`` alone, into ``d.rhs``
+    and ``d.x`` (a step solved from Python: the caller solves, refines and stores it; the
+    factor fields of ``K`` are not read)."""
     x = d.x
     for k in range(k0, k1):
         j = k - K.k0[0]
         new, old = kept_state(K, j + 1), kept_state(K, j)
         prepare(d, M, T, sc, K.D[j, 0], K.D[j, 1], new, old, k, refine)
+        if rhs_only:
+            return
         Fk = kept_factor(K, F, j)
         solve_factored(x, d.work, Fk)
         if refine is not None:

@@ -34,7 +34,7 @@ from ..kernels.steps import run_steps
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record, release
+from ..solve.record import keep_record, release, solved_step
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
@@ -246,11 +246,13 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     N = settings.n_steps
     starts = sorted(hook.checkpoints)
     replay = _Replay(hook, settings) if hook.segment is not None else None
+    # a record and factor arrays the sweep takes (its types for the steps solved from Python)
+    like = (hook.records[-1], hook.patterns[-1]) if hook.records else None
     k = N
     while k >= 0:
         if k in hook.python:
             a = _with_terms(a, vjps, sys0, k, k)
-            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact)
+            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact, like)
             k -= 1
             continue
         lo = k
@@ -261,7 +263,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
         if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
             a = _with_terms(a, vjps, sys0, lo, k)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact)
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact, -1)
         else:
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
@@ -271,7 +273,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
                     break
                 k0 = max(lo, int(K.k0[0]))
                 a = _with_terms(a, vjps, sys0, k0, k)
-                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact)
+                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact, -1)
+                like = K, F
                 k = k0 - 1
             # the next segment's record is made of them
             release([K for K, _ in pieces], "adjoint")
@@ -324,24 +327,24 @@ def _with_terms(a, vjps, sys0, lo: int, hi: int):
     return a._replace(Hq=H[0], Hv=H[1], Ha=H[2], Hl=H[3], h0=np.array([lo], dtype=np.int64))
 
 
-def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None) -> None:
-    """Step ``k`` of the sweep with a factor solved from Python (the same kernels around
-    the solves as the compiled sweep; ``refine`` as for it)."""
+def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like) -> None:
+    """Step ``k`` of the sweep with a factor solved from Python: the same kernels around the
+    solves as the compiled sweep (``refine`` as for it), the rest of the step the sweep's
+    own, on a record of this step (:func:`~morphlab.solve.record.solved_step` with the types
+    of ``like``, a record and factor arrays of the run or None)."""
     kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
     lu = step.factor
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
-    if refine is None:
-        Dq, Dv = step.Dq, step.Dv
-    else:
+    if refine is not None:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
-        Dq, Dv = a.mats[1], a.mats[2]
         if refine > 0:
             for _ in range(refine):
                 kadj.refinement_residual(a, stp.newton.csc)
                 a.mu[:] += np.asarray(lu.solve_transposed(a.r), dtype=float)
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
-    kadj.finish(a, stp.M, stp.T, sc, stp.newton.csc, Dq, Dv, step.new, step.old, k)
+    K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k)
 
 
 def _touched(sys0: System, ps, skip: np.ndarray | None = None) -> tuple:

@@ -8,8 +8,10 @@ Differentiating the converged step equations ``R(z_{n+1}; s_n, p) = 0`` along de
 The steps the run solves in compiled chunks record their factors, their last fill's ``Dq``,
 ``Dv`` and their states (:class:`~morphlab.kernels.adjoint.Keep`), and each chunk's
 sensitivities follow in one compiled call (:func:`~morphlab.kernels.direct.chunk`); the steps
-solved from Python (the initial solve, the step SuperLU chooses a row order on) have theirs
-formed at once from Python with the same kernels. The Newmark update is linear, so
+solved from Python (the initial solve, the step SuperLU chooses a row order on) are kept with
+their factors until the next chunk (or the end of the run), then their right-hand sides are
+formed by the same compiled call on a record of the step and solved with their factors from
+Python (:meth:`DirectHook.solve_pending`). The Newmark update is linear, so
 ``dq_{n+1} = dq_hat + bh2 da_{n+1}``, ``dv_{n+1} = dv_hat + gh da_{n+1}``.
 
 Which matrices: ``reuse=True`` (the default) solves with the step's own last Newton matrix
@@ -28,11 +30,11 @@ import numpy as np
 from ..compile import System
 from ..kernels.adjoint import Keep
 from ..kernels.assemble import matrix
-from ..kernels.direct import Direct, chunk, prepare, refinement_residual, store
+from ..kernels.direct import Direct, chunk, refinement_residual, store
 from ..kernels.newton import Csc
 from ..kernels.pseudo import Column, Pseudo
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record, release
+from ..solve.record import keep_record, release, solved_step
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
@@ -79,6 +81,8 @@ class DirectHook(StepHook):
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
                         Csc(system.indices, system.indptr))
         self.record = None
+        self.factor_arrays = None  # those of the last chunk (for the record's types)
+        self.pending: list = []  # steps solved from Python, before their sensitivities
         self.seconds = 0.0
 
     def start(self, stepper, hist) -> None:
@@ -88,30 +92,48 @@ class DirectHook(StepHook):
                                  split=self.rows == 3)
 
     def python_step(self, k: int, out) -> None:
-        """Step ``k`` solved from Python: right-hand sides and update by the compiled kernels,
-        the solves with its factor from Python."""
+        """Step ``k`` solved from Python: kept with its factor until the sensitivities of the
+        next compiled chunk or the end of the run (:meth:`solve_pending`), when a record of
+        the compiled steps gives the types the kernels take it with."""
         t0 = _time.perf_counter()
-        d, stp = self.d, self.stepper
+        stp = self.stepper
         sc = self.sc0 if k == 0 else self.sc
         new = _level(out.state)
         old = new if k == 0 else _level(self.hist.state(k - 1))
         data = stp.newton.data
-        if k == 0 and self.reuse:  # the initial solve's fill was at its starting guess
+        if not self.reuse:  # the exact variant forms its matrices at the converged state
+            Dq = Dv = None
+        elif k == 0:  # the initial solve's fill was at its starting guess
             Dq, Dv = converged_blocks(stp, sc, new)
         else:
-            Dq, Dv = (data[1], data[2]) if self.reuse else (data[0], data[0])
-        prepare(d, stp.M, stp.T, sc, Dq, Dv, new, old, k, self.refine)
-        lu = out.factor
-        x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
-        if self.refine:  # the exact variant, refined
-            for _ in range(self.refine):
+            Dq, Dv = data[1].copy(), data[2].copy()
+        self.pending.append((k, sc, new, old, Dq, Dv, out.factor))
+        self.seconds += _time.perf_counter() - t0
+
+    def solve_pending(self) -> None:
+        """The sensitivities of the steps solved from Python since the last chunk, in order:
+        right-hand sides by the compiled chunk (``rhs_only``, on a record of the step:
+        :func:`~morphlab.solve.record.solved_step`), the solves with the step's factor from
+        Python, the update by the compiled kernel."""
+        if not self.pending:
+            return
+        t0 = _time.perf_counter()
+        d, stp = self.d, self.stepper
+        like = None if self.record is None else (self.record, self.factor_arrays)
+        for k, sc, new, old, Dq, Dv, lu in self.pending:
+            K, F = solved_step(like, new, old, Dq, Dv, k)
+            chunk(d, stp.M, stp.T, sc, F, K, k, k + 1, self.refine, True)
+            x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
+            if self.refine:  # the exact variant, refined
+                for _ in range(self.refine):
+                    d.x[:] = x
+                    refinement_residual(d)
+                    x = x + lu.solve(d.r)
                 d.x[:] = x
-                refinement_residual(d)
-                x = x + lu.solve(d.r)
-            d.x[:] = x
-            rr, bb = refinement_residual(d)
-            d.refined[k] = rr / max(bb, 1e-300)
-        store(d.DQ, d.DV, d.DA, d.DG, d.DL, sc, x, k)
+                rr, bb = refinement_residual(d)
+                d.refined[k] = rr / max(bb, 1e-300)
+            store(d.DQ, d.DV, d.DA, d.DG, d.DL, sc, x, k)
+        self.pending.clear()
         self.seconds += _time.perf_counter() - t0
 
     def kernels(self, k0: int, k1: int) -> tuple:
@@ -127,10 +149,12 @@ class DirectHook(StepHook):
     def after_chunk(self, k0: int, k1: int) -> None:
         if k1 <= k0:
             return
-        t0 = _time.perf_counter()
         stp = self.stepper
-        chunk(self.d, stp.M, stp.T, self.sc, stp.newton.factorization.loop_arrays(),
-              self.record, k0, k1, self.refine)
+        self.factor_arrays = stp.newton.factorization.loop_arrays()
+        self.solve_pending()  # the steps before k0 solved from Python
+        t0 = _time.perf_counter()
+        chunk(self.d, stp.M, stp.T, self.sc, self.factor_arrays, self.record, k0, k1,
+              self.refine, False)
         self.seconds += _time.perf_counter() - t0
 
 
@@ -146,9 +170,11 @@ def converged_blocks(stepper, sc, new) -> tuple:
 
 
 def _level(st):
+    """The state ``st`` as a :class:`~morphlab.kernels.types.Level` of copies (kept until
+    :meth:`DirectHook.solve_pending`)."""
     from ..kernels.types import Level
 
-    return Level(st.q, st.v, st.a, st.lam)
+    return Level(np.array(st.q), np.array(st.v), np.array(st.a), np.array(st.lam))
 
 
 def direct_run(sys0: System, settings: Settings, psys: list, ps: Pseudo, dq0, dv0,
@@ -162,6 +188,7 @@ def direct_run(sys0: System, settings: Settings, psys: list, ps: Pseudo, dq0, dv
     hook = DirectHook(sys0, settings.n_steps, ps, dq0, dv0, kept, reuse=reuse, refine=refine)
     t0 = _time.perf_counter()
     res0 = integrate(sys0, settings, hook=hook, progress=progress)
+    hook.solve_pending()  # steps solved from Python after the last chunk
     release([hook.record], "direct")  # the next run's record is made of it
     total = _time.perf_counter() - t0
     by_variable = {k: hook.full[k] for k in HISTORIES if k in kept}

@@ -26,6 +26,8 @@ import numpy as np
 
 from ..compile import System
 from ..kernels.adjoint import Keep
+from ..kernels.newton import Factors
+from ..kernels.types import Level
 
 #: Per method ("adjoint", "direct"), the records of its last release, free to be taken.
 _POOL: dict[str, list[Keep]] = {}
@@ -58,6 +60,31 @@ def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool, *,
             return R
     arrays = [None if s is None else np.zeros(*s) for s in shapes]
     return Keep(*arrays, np.array([k0], dtype=np.int64))
+
+
+def solved_step(like: tuple[Keep, Factors] | None, new: Level, old: Level, Dq, Dv,
+                k: int) -> tuple[Keep, Factors]:
+    """A record of the one step ``k`` solved from Python, for the kernels that read the steps
+    from a record with the caller's solve in its place (``sweep`` with ``solved``, ``chunk``
+    with ``rhs_only``), and the factor arrays to pass with it: the step's states ``old``,
+    ``new`` (rows 0 and 1) and the ``Dq``, ``Dv`` (nnz,) of its fill (None: the exact variant,
+    no blocks). Its factor fields are views of the first row of those of ``like``, a record
+    and its factor arrays that the kernels take already, so that they take this one with the
+    types they were compiled for (the fields are not read); with ``like`` None (the run has no
+    compiled step), a dense factor of one entry."""
+    dt = np.asarray(new.q).dtype if like is None else like[0].Q.dtype
+    if like is None:
+        F = Factors(np.zeros((1, 1), dt), np.zeros(1, np.int64), None, None, None, None, None)
+        fac = [np.zeros((1, 1, 1), dt), np.zeros((1, 1), np.int64), None, None, None]
+    else:
+        R, F = like
+        fac = [None if x is None else x[:1] for x in (R.LU, R.piv, R.Lx, R.Ux, R.Ud)]
+    D = np.zeros((1, 2, 0 if Dq is None else Dq.size), dt)
+    if Dq is not None:
+        D[0, 0], D[0, 1] = Dq, Dv
+    states = [np.stack([np.asarray(a, dtype=dt), np.asarray(b, dtype=dt)])
+              for a, b in zip(old, new)]
+    return Keep(*fac, D, *states, np.array([k], dtype=np.int64)), F
 
 
 def _shapes(R: Keep) -> list:
