@@ -34,7 +34,7 @@ from ..kernels.steps import run_steps
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record, release, solved_step
+from ..solve.record import keep_record, release, solved_step, template
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
@@ -247,7 +247,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     starts = sorted(hook.checkpoints)
     replay = _Replay(hook, settings) if hook.segment is not None else None
     # a record and factor arrays the sweep takes (its types for the steps solved from Python)
-    like = (hook.records[-1], hook.patterns[-1]) if hook.records else None
+    like = ((hook.records[-1], hook.patterns[-1]) if hook.records else
+            template(sys0, stp.newton.factorization, hook.rows == 3))
     k = N
     while k >= 0:
         if k in hook.python:

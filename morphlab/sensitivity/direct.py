@@ -8,10 +8,10 @@ Differentiating the converged step equations ``R(z_{n+1}; s_n, p) = 0`` along de
 The steps the run solves in compiled chunks record their factors, their last fill's ``Dq``,
 ``Dv`` and their states (:class:`~morphlab.kernels.adjoint.Keep`), and each chunk's
 sensitivities follow in one compiled call (:func:`~morphlab.kernels.direct.chunk`); the steps
-solved from Python (the initial solve, the step SuperLU chooses a row order on) are kept with
-their factors until the next chunk (or the end of the run), then their right-hand sides are
-formed by the same compiled call on a record of the step and solved with their factors from
-Python (:meth:`DirectHook.solve_pending`). The Newmark update is linear, so
+solved from Python (the initial solve, the step SuperLU chooses a row order on) have their
+right-hand sides formed by the same compiled call on a record of the step, which Python solves
+with their factors (:meth:`DirectHook.solve_pending`; a sparse run's initial solve waits for
+the row order, which gives the record its types). The Newmark update is linear, so
 ``dq_{n+1} = dq_hat + bh2 da_{n+1}``, ``dv_{n+1} = dv_hat + gh da_{n+1}``.
 
 Which matrices: ``reuse=True`` (the default) solves with the step's own last Newton matrix
@@ -34,7 +34,7 @@ from ..kernels.direct import Direct, chunk, refinement_residual, store
 from ..kernels.newton import Csc
 from ..kernels.pseudo import Column, Pseudo
 from ..solve.record import fits as _fits
-from ..solve.record import keep_record, release, solved_step
+from ..solve.record import keep_record, release, solved_step, template
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
@@ -92,9 +92,10 @@ class DirectHook(StepHook):
                                  split=self.rows == 3)
 
     def python_step(self, k: int, out) -> None:
-        """Step ``k`` solved from Python: kept with its factor until the sensitivities of the
-        next compiled chunk or the end of the run (:meth:`solve_pending`), when a record of
-        the compiled steps gives the types the kernels take it with."""
+        """Step ``k`` solved from Python: its sensitivities (:meth:`solve_pending`) once the
+        factorization has compiled factors, whose record types the kernels take it with (at
+        once, but for a sparse run's first steps: SuperLU chooses the row order on the first
+        step after the initial solve); until then kept with its factor."""
         t0 = _time.perf_counter()
         stp = self.stepper
         sc = self.sc0 if k == 0 else self.sc
@@ -109,17 +110,20 @@ class DirectHook(StepHook):
             Dq, Dv = data[1].copy(), data[2].copy()
         self.pending.append((k, sc, new, old, Dq, Dv, out.factor))
         self.seconds += _time.perf_counter() - t0
+        if stp.newton.factorization.settled:
+            self.solve_pending()
 
     def solve_pending(self) -> None:
-        """The sensitivities of the steps solved from Python since the last chunk, in order:
-        right-hand sides by the compiled chunk (``rhs_only``, on a record of the step:
+        """The sensitivities of the steps solved from Python and kept, in order: right-hand
+        sides by the compiled chunk (``rhs_only``, on a record of the step:
         :func:`~morphlab.solve.record.solved_step`), the solves with the step's factor from
         Python, the update by the compiled kernel."""
         if not self.pending:
             return
         t0 = _time.perf_counter()
         d, stp = self.d, self.stepper
-        like = None if self.record is None else (self.record, self.factor_arrays)
+        like = (template(self.system, stp.newton.factorization, self.reuse)
+                if self.record is None else (self.record, self.factor_arrays))
         for k, sc, new, old, Dq, Dv, lu in self.pending:
             K, F = solved_step(like, new, old, Dq, Dv, k)
             chunk(d, stp.M, stp.T, sc, F, K, k, k + 1, self.refine, True)
@@ -188,7 +192,7 @@ def direct_run(sys0: System, settings: Settings, psys: list, ps: Pseudo, dq0, dv
     hook = DirectHook(sys0, settings.n_steps, ps, dq0, dv0, kept, reuse=reuse, refine=refine)
     t0 = _time.perf_counter()
     res0 = integrate(sys0, settings, hook=hook, progress=progress)
-    hook.solve_pending()  # steps solved from Python after the last chunk
+    hook.solve_pending()  # any kept to the end (a run without compiled factors)
     release([hook.record], "direct")  # the next run's record is made of it
     total = _time.perf_counter() - t0
     by_variable = {k: hook.full[k] for k in HISTORIES if k in kept}

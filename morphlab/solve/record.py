@@ -62,6 +62,18 @@ def keep_record(system: System, factor_arrays, K: int, k0: int, blocks: bool, *,
     return Keep(*arrays, np.array([k0], dtype=np.int64))
 
 
+def template(system: System, factorization, blocks: bool) -> tuple[Keep, Factors] | None:
+    """A record of no steps and fresh factor arrays of ``factorization``
+    (:class:`~morphlab.solve.linalg.StepFactorization`), with the types of the records of its
+    compiled steps (``blocks`` as for :func:`keep_record`): the ``like`` of
+    :func:`solved_step` before any such record exists. None while the factorization has no
+    compiled factors (a sparse one before SuperLU has chosen its row order)."""
+    if not factorization.settled:
+        return None
+    F = factorization.loop_arrays()
+    return keep_record(system, F, 0, 0, blocks), F
+
+
 def solved_step(like: tuple[Keep, Factors] | None, new: Level, old: Level, Dq, Dv,
                 k: int) -> tuple[Keep, Factors]:
     """A record of the one step ``k`` solved from Python, for the kernels that read the steps
@@ -69,9 +81,9 @@ def solved_step(like: tuple[Keep, Factors] | None, new: Level, old: Level, Dq, D
     with ``rhs_only``), and the factor arrays to pass with it: the step's states ``old``,
     ``new`` (rows 0 and 1) and the ``Dq``, ``Dv`` (nnz,) of its fill (None: the exact variant,
     no blocks). Its factor fields are views of the first row of those of ``like``, a record
-    and its factor arrays that the kernels take already, so that they take this one with the
-    types they were compiled for (the fields are not read); with ``like`` None (the run has no
-    compiled step), a dense factor of one entry."""
+    and its factor arrays that the kernels take already (or :func:`template`), so that they
+    take this one with the types they were compiled for (the fields are not read); with
+    ``like`` None (a run without compiled factors), a dense factor of one entry."""
     dt = np.asarray(new.q).dtype if like is None else like[0].Q.dtype
     if like is None:
         F = Factors(np.zeros((1, 1), dt), np.zeros(1, np.int64), None, None, None, None, None)
