@@ -81,7 +81,7 @@ class DirectHook(StepHook):
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
                         Csc(system.indices, system.indptr))
         self.record = None
-        self.factor_arrays = None  # those of the last chunk (for the record's types)
+        self.factor_arrays = None  # those of the last chunk that ran (the record's types)
         self.pending: list = []  # steps solved from Python, before their sensitivities
         self.seconds = 0.0
 
@@ -122,8 +122,10 @@ class DirectHook(StepHook):
             return
         t0 = _time.perf_counter()
         d, stp = self.d, self.stepper
+        # the types of the last chunk's record; before one ran (its record may exist with no
+        # step converged in it), those of a record of no steps
         like = (template(self.system, stp.newton.factorization, self.reuse)
-                if self.record is None else (self.record, self.factor_arrays))
+                if self.factor_arrays is None else (self.record, self.factor_arrays))
         for k, sc, new, old, Dq, Dv, lu in self.pending:
             K, F = solved_step(like, new, old, Dq, Dv, k)
             chunk(d, stp.M, stp.T, sc, F, K, k, k + 1, self.refine, True)
