@@ -1,4 +1,4 @@
-"""The one Numba configuration of the kernels: two decorators.
+"""The one Numba configuration of the kernels: three decorators.
 
 * :func:`kernel`: a kernel Python calls. Compiled on first call for the types of its
   arguments (float64 and complex128 alike), cached on disk (``cache=True``).
@@ -6,7 +6,20 @@
   without the wrapper that converts Python arguments: for a function that takes a system's
   arrays (tens of arrays in nested tuples), generating that wrapper is most of its compile
   time, and an inner kernel never needs it. Called from Python it raises ``TypeError`` (with
-``NUMBA_DISABLE_JIT=1``, for debugging, every kernel is the plain Python function).
+  ``NUMBA_DISABLE_JIT=1``, for debugging, every kernel is the plain Python function).
+  ``inner(forceinline=True)`` marks it for LLVM to inline into its callers: typed and
+  compiled once, without the cost of a call where it runs.
+* :func:`inlined`: a helper Numba inlines into its callers before typing them; no kernel of
+  its own.
+
+Inlining at Numba level types the helper's body again at every call site: about a CPU-second
+for a point's value and derivatives (:func:`~morphlab.kernels.joints.side_terms`), which the
+rows, the spring-dampers, the slides and the point loads took at eight call sites between
+them. So a helper of some size with several call sites is ``inner(forceinline=True)``, and
+:func:`inlined` is for a helper with one call site, a trivial one, or one in a loop whose speed
+needs it: ``side_terms`` called through an LLVM-inlined kernel from the rows' side made the
+morphing primal 15 % slower, so the rows keep it inlined at Numba level
+(:data:`~morphlab.kernels.joints.point_terms` is the LLVM-inlined one the other kinds call).
 
 ``nogil=True`` (:func:`kernel` with ``nogil``) releases the GIL while a long kernel runs.
 
@@ -171,14 +184,17 @@ def kernel(fn=None, *, nogil: bool = False):
     return _locked_saves(njit(cache=True, nogil=nogil)(fn), KernelDispatcher)
 
 
-def inner(fn):
-    """Compile ``fn`` as a kernel only kernels call (module docstring)."""
-    return _locked_saves(njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)(fn),
-                         InnerDispatcher)
+def inner(fn=None, *, forceinline: bool = False):
+    """Compile ``fn`` as a kernel only kernels call (module docstring); ``forceinline``: LLVM
+    inlines it into every caller."""
+    if fn is None:
+        return lambda f: inner(f, forceinline=forceinline)
+    return _locked_saves(njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True,
+                              forceinline=forceinline)(fn), InnerDispatcher)
 
 
 def inlined(fn):
-    """Inline ``fn`` into the kernels that call it, at Numba level (no call of its own): for
-    the small helpers of the per-row loops, whose calls would cost a sizable part of a step.
-    Each call site types it again, so it is for helpers called from few places."""
+    """Inline ``fn`` into the kernels that call it, at Numba level (no kernel of its own).
+    Each call site types it again (module docstring), so it is for a helper with one call
+    site."""
     return njit(inline="always")(fn)

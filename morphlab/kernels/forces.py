@@ -21,7 +21,7 @@ for the length
 import numpy as np
 
 from ._jit import inner, kernel
-from .joints import point_angle, point_dofs, side_terms
+from .joints import point_angle, point_dofs, point_terms
 from .schema import Kind, design, pattern, register, topology
 
 #: Kinds of spring-damper (``springs.kind``): distance of two points, relative rotation.
@@ -92,10 +92,10 @@ def _terms(A, i, q, v, G):
         sd = point_angle(dP, v, zero) - point_angle(dQ, v, zero)
         return s, sd, zero, zero, zero + 1.0
     # a ground side (no DOFs) gives its body-frame point: its global position
-    xP, _, DxP, _, _, _ = side_terms(np.int64(0), dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
-    yP, _, DyP, _, _, _ = side_terms(np.int64(1), dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
-    xQ, _, DxQ, _, _, _ = side_terms(np.int64(0), dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
-    yQ, _, DyQ, _, _, _ = side_terms(np.int64(1), dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
+    xP, _, DxP, _, _, _ = point_terms(np.int64(0), dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
+    yP, _, DyP, _, _, _ = point_terms(np.int64(1), dP, u[i, 0, 0], u[i, 0, 1], q, v, v)
+    xQ, _, DxQ, _, _, _ = point_terms(np.int64(0), dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
+    yQ, _, DyQ, _, _, _ = point_terms(np.int64(1), dQ, u[i, 1, 0], u[i, 1, 1], q, v, v)
     _put(G, 2, 0, DxP, 1.0)
     _put(G, 3, 0, DyP, 1.0)
     _put(G, 2, 6, DxQ, -1.0)

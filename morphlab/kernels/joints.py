@@ -161,7 +161,7 @@ def side_terms(kind, dofs, ux0, uy0, q, v, a):
     return g, vHv, grad, Hv, Ha, dvHv
 
 
-@inlined
+@inner(forceinline=True)
 def side_hessian(kind, dofs, ux0, uy0, q):
     """The nonzero entries ``(H_thth, H_th,wx, H_th,wy)`` of ``H = d²g/dq²`` of one side of an
     x (``kind`` 0) or y (1) row (symmetric)."""
@@ -188,6 +188,13 @@ def point_side(kind, dofs, ux0, uy0, q, v, a):
     return side_terms(kind, dofs, ux0, uy0, q, v, a)
 
 
+#: :func:`side_terms` as a call of its own, which LLVM inlines (``forceinline``), for the item
+#: kinds that evaluate points at several places (forces, slides, point and line loads): there
+#: each call site of the Numba-level inlined one is typed again, about a CPU-second each. The
+#: rows' :func:`_side` keeps the Numba-level one, with which their loop runs faster.
+point_terms = inner(forceinline=True)(getattr(side_terms, "py_func", side_terms))
+
+
 @inlined
 def point_dofs(dofs):
     """The DOFs ``(R_x, R_y, theta, u, v, phi)`` of a point as a 6-tuple, from its row
@@ -207,12 +214,7 @@ def point_angle(dofs, w, zero):
     return out
 
 
-@inlined
-def _scaled(x, t):
-    return (x * t[0], x * t[1], x * t[2], x * t[3], x * t[4], x * t[5])
-
-
-@inlined
+@inner(forceinline=True)
 def _side(A, i, side, q, v, a):
     """``(sign, g, vHv, grad, Hv, Ha, dvHv, dofs)`` of side ``side`` of row ``i``
     (:func:`point_side`, the last five 6-tuples on the side's DOFs ``dofs``); ``sign`` the
@@ -228,7 +230,7 @@ def _side(A, i, side, q, v, a):
     return sign, g, vHv, grad, Hv, Ha, dvHv, d
 
 
-@inlined
+@inner(forceinline=True)
 def add_row_entries(w, C, gr, hv, ha, dvhv, p_row, p_col, out):
     """The entries of one DOF of a constraint row (weights ``w``,
     :class:`~morphlab.kernels.types.Weights`) in the outputs ``out`` (m, nnz) of the
@@ -315,7 +317,7 @@ def matrix(A, x, w, C, out):
                 add_hessian(A.H[i, side], h22, h23, h24, coef, out[r])
 
 
-@inlined
+@inner(forceinline=True)
 def add_hessian(hmap, h22, h23, h24, coef, data):
     """Add ``coef H`` of one side to ``data`` at the positions ``hmap[j, k]`` (6, 6)."""
     for (j, k, h) in ((2, 2, h22), (2, 3, h23), (3, 2, h23), (2, 4, h24), (4, 2, h24)):

@@ -33,8 +33,8 @@ from .joints import (
     hessian_coordinates,
     point_angle,
     point_dofs,
+    point_terms,
     side_hessian,
-    side_terms,
 )
 from .schema import Kind, design, pattern, register, timed, topology
 
@@ -101,7 +101,7 @@ def add_point_force(dofs, ux0, uy0, q, wf, F0, F1, R):
     """Subtract ``wf grad^T F`` of a force ``F = (F0, F1)`` (global components) at the body-
     frame point ``(ux0, uy0)`` of the DOFs ``dofs`` (6-tuple) from the rows of ``R``."""
     for c in range(2):
-        _, _, grad, _, _, _ = side_terms(c, dofs, ux0, uy0, q, q, q)
+        _, _, grad, _, _, _ = point_terms(c, dofs, ux0, uy0, q, q, q)
         Fc = F0 if c == 0 else F1
         for j in range(6):
             if dofs[j] >= 0:
@@ -172,7 +172,7 @@ def point_force_matrix(A, q, cf, T, t, k, C, out):
             if dFx == 0.0 and dFy == 0.0:  # a fixed direction (or no force)
                 continue
             for comp in (ROW_X, ROW_Y):
-                _, _, grad, _, _, _ = side_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
+                _, _, grad, _, _, _ = point_terms(comp, dofs, A.u0[i, 0], A.u0[i, 1], q, q, q)
                 dF = dFx if comp == ROW_X else dFy
                 for j in range(6):
                     for n in (2, 5):

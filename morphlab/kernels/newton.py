@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import inner
+from ._jit import inlined, inner
 from .assemble import apply_correction, level, matrix, residual
 from .dense import csc_to_dense, lu_factor, lu_solve, lu_solve_transposed
 from .sparse_lu import refactor
@@ -141,7 +141,7 @@ def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern, transposed):
                                     col_scale, b, b, work)
 
 
-@inner
+@inlined
 def newton_loop(M, T, P, s, z, csc, F, opt, ws):
     """Full Newton–Raphson on the step ``s`` (:class:`~morphlab.kernels.assemble.Step`) from
     ``z``, in one call: iterations of the residual ``R_hist + E(z)``
@@ -162,7 +162,11 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws):
     without a nonzero pivot); 3 non-finite correction (``z`` the corrected iterate); 4 no
     convergence in ``max_iter`` iterations; 5 a sparse pivot failed the threshold (``bad`` its
     column, ``z`` the iterate whose matrix it was: the caller lets SuperLU choose a new row
-    order and goes on from there)."""
+    order and goes on from there).
+
+    Inlined into :func:`~morphlab.kernels.steps.run_steps`, its one caller: compiled as a
+    kernel of its own, its closure (every item kind's residual and matrix) was emitted once
+    more (``_jit``'s docstring)."""
     n = ws.R.shape[0]
     n_dof = s.qh.shape[0]
     dz1 = np.empty(n, dtype=ws.R.dtype)  # contiguous: apply_correction as called from Python

@@ -13,7 +13,7 @@ import numpy as np
 
 from ._jit import inner, kernel
 from .joints import add_hessian as _add_side_hessian
-from .joints import add_row_entries, point_angle, point_dofs, side_hessian, side_terms
+from .joints import add_row_entries, point_angle, point_dofs, point_terms, side_hessian
 from .schema import Kind, design, pattern, register, timed, topology
 
 SLIDES = register(Kind("slides", [
@@ -85,8 +85,8 @@ def _dot(grad, dofs, w, zero):
 def _point(dofs, ux0, uy0, q, v, a):
     """The x and the y component of one material point (:func:`~morphlab.kernels.joints.
     side_terms` of each; a ground side's point is its global position)."""
-    return (side_terms(np.int64(0), dofs, ux0, uy0, q, v, a),
-            side_terms(np.int64(1), dofs, ux0, uy0, q, v, a))
+    return (point_terms(np.int64(0), dofs, ux0, uy0, q, v, a),
+            point_terms(np.int64(1), dofs, ux0, uy0, q, v, a))
 
 
 @inner
