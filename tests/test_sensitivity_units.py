@@ -18,18 +18,24 @@ from morphlab.kernels.types import Level, Weights
 from morphlab.sensitivity.adjoint import _touched
 from morphlab.sensitivity.designs import CS_STEP, changes, pseudo_data
 from morphlab.sensitivity.units import share_units
+from morphlab.solve.record import template
+from morphlab.solve.settings import Settings
+from morphlab.solve.stepper import Stepper
 from tests.models import E_AL, RHO_AL, straight_nodes
 
 
 def _units(build, p0):
     """The nominal system, the pseudo-load data, the rows and the units of ``build``'s
-    variables."""
+    variables (the rows probed in the sweep's kernel, as an adjoint run probes them, on the
+    stepper of a run of one step)."""
     sys0 = ml.compile_model(build(p0))
     times = np.array([0.0, 1e-3])
     T0 = time_table(sys0, times)
     ps = pseudo_data(sys0, changes(build, p0, list(p0), sys0, times),
                      np.full(len(p0), 1j * CS_STEP), T0)
-    RO, RI = _touched(sys0, ps)
+    stp = Stepper.dynamic(sys0, Settings(t_end=1e-3, dt=1e-3), T0, scale=1.0, rows=3)
+    RO, RI = _touched(sys0, ps, None, stp, template(sys0, stp.newton.factorization, True),
+                      None)
     return sys0, ps, RO, RI, share_units(ps, RO, RI)
 
 
@@ -68,6 +74,7 @@ def test_thicknesses_of_separate_frames_are_one_evaluation_with_each_its_own_row
         rows = RI[RO[i]:RO[i + 1]]
         assert np.max(np.abs(total[rows] - col[rows])) <= 1e-13 * scale
         assert not np.any(np.delete(col, rows))  # nothing outside its rows
+        assert np.array_equal(np.flatnonzero(col), rows)  # and nothing more probed
 
 
 @pytest.mark.parametrize("frames", [1, 2])

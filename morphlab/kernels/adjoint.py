@@ -70,7 +70,9 @@ class Sweep(NamedTuple):
     data_gradient`), accumulated; the stiffness derivatives of its variables ``KO``, ``KX``,
     ``KE``, ``KV`` (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`);
     buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column``
-    (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,)."""
+    (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,);
+    ``probe`` (units, n): no rows in a sweep; with rows, a probe of the rows the variables
+    touch (:func:`_design_share`)."""
 
     Bq: np.ndarray
     Bv: np.ndarray
@@ -103,6 +105,7 @@ class Sweep(NamedTuple):
     column: tuple
     mats: np.ndarray
     refined: np.ndarray
+    probe: np.ndarray
 
 
 @inner
@@ -165,11 +168,13 @@ def kept_factor(K, F, j):
 @inner
 def _design_share(a, M, T, sc, new, old, k):
     """``grad_i -= (dR_k/dp_i)^T mu`` for every variable of a unit, over the rows it touches;
-    the bodies' data gradient ``G += d(mu^T R_k)/dD`` (module docstring)."""
+    the bodies' data gradient ``G += d(mu^T R_k)/dD`` (module docstring). A probe (``a.probe``
+    with rows: ``morphlab.sensitivity.adjoint._touched``) writes unit ``u``'s explicit column
+    into ``a.probe[u]`` instead, all of it: which rows a variable touches is what it finds."""
     # the fields the loop reads, bound before it (read inside, the large ``ps`` is extracted
     # from ``a`` again for every call), and ``explicit`` called here, not through a helper
     # (an inlined one copies ``ps`` too): each costs 0.2 of the pendulum's sweep
-    ps, mu, column = a.ps, a.mu, a.column
+    ps, mu, column, probe = a.ps, a.mu, a.column, a.probe
     col = column.R
     m = mu.shape[1]
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
@@ -186,6 +191,11 @@ def _design_share(a, M, T, sc, new, old, k):
         explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
             explicit(ps, M, T, v, old, column.XO, sc.w_old, k - 1, column)
+        if probe.shape[0] > 0:
+            for r in range(col.shape[0]):
+                probe[u, r] = col[r]
+                col[r] = 0.0
+            continue
         for jj in range(a.UO[u], a.UO[u + 1]):
             i = a.UI[jj]
             for j in range(a.RO[i], a.RO[i + 1]):

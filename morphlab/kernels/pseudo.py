@@ -168,6 +168,8 @@ def explicit(ps, M, T, i, x, xn, w, k, c):
 
 @kernel
 def explicit_column(ps, M, T, i, x, w, k, c):
-    """:func:`explicit` called from Python (the probe of the rows a variable touches)."""
+    """:func:`explicit` called from Python: one variable's column at a given state, for tests
+    and inspection (the adjoint finds the rows a variable touches in its sweep's kernel,
+    ``morphlab.sensitivity.adjoint._touched``, and compiles no call of this one)."""
     load(c.XN, x)
     explicit(ps, M, T, i, x, c.XN, w, k, c)

@@ -224,31 +224,24 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     t_primal = _time.perf_counter() - t0
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
-    n, n_dof, n_con, m = sys0.n, sys0.n_dof, sys0.n_con, len(vjps)
+    m = len(vjps)
     n_x = dq0.shape[1]
+    exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)
+    stp = hook.stepper
+    # a record and factor arrays the sweep takes (its types for the steps solved from Python)
+    like = ((hook.records[-1], hook.patterns[-1]) if hook.records else
+            template(sys0, stp.newton.factorization, hook.rows == 3))
     lumped = bodies_linear(ps, n_x)
-    RO, RI = _touched(sys0, ps, lumped)
+    RO, RI = _touched(sys0, ps, lumped, stp, like, exact)
     GD, GO, KS = _data_gradient(sys0, ps, lumped, m)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
-    a = kadj.Sweep(np.zeros((n_dof, m)), np.zeros((n_dof, m)), np.zeros((n_dof, m)),
-                   np.zeros((n_dof, m)), np.zeros((n_con, m)),
-                   *_terms(vjps, np.zeros(0, np.int64), sys0), np.zeros(1, dtype=np.int64),
-                   ps, RO, RI, UO, UI, UV, np.zeros((n_x, m)), GD, GO, *KS, np.zeros((n, m)),
-                   np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m)), np.zeros((n_dof, m)),
-                   Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
-                   np.zeros((6, sys0.nnz)),
-                   np.full(settings.n_steps + 1, np.nan))
-    exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)
-    stp = hook.stepper
+    a = _sweep_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS), settings.n_steps + 1)
     sc = stp.scheme_of()
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
     N = settings.n_steps
     starts = sorted(hook.checkpoints)
     replay = _Replay(hook, settings) if hook.segment is not None else None
-    # a record and factor arrays the sweep takes (its types for the steps solved from Python)
-    like = ((hook.records[-1], hook.patterns[-1]) if hook.records else
-            template(sys0, stp.newton.factorization, hook.rows == 3))
     k = N
     while k >= 0:
         if k in hook.python:
@@ -293,6 +286,25 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
     values = {k: vj.value for k, vj in zip(names, vjps)}
     gradients = {k: grad[:, r] for r, k in enumerate(names)}
     return res0, values, gradients, timing, stats
+
+
+def _sweep_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tuple, n_t: int,
+                 probe: int = 0):
+    """A :class:`~morphlab.kernels.adjoint.Sweep` at zero for ``m`` responses over ``n_t``
+    time indices: the pseudo-load data ``ps``, the rows its variables touch ``(RO, RI)``, its
+    units ``(UO, UI, UV)`` and its data gradient ``(GD, GO, KS)`` (:func:`_data_gradient`);
+    ``probe``: units of a probe (:func:`_touched`), none in a sweep."""
+    n_dof, n_con = sys0.n_dof, sys0.n_con
+    n = n_dof + n_con
+    n_x = ps.PO.size - 1
+    GD, GO, KS = data
+    return kadj.Sweep(*(np.zeros((n_dof, m)) for _ in range(4)), np.zeros((n_con, m)),
+                      *(np.zeros((0, n_dof, m)) for _ in range(3)), np.zeros((0, n_con, m)),
+                      np.zeros(1, dtype=np.int64), ps, *rows, *units, np.zeros((n_x, m)), GD,
+                      GO, *KS, *(np.zeros((n, m)) for _ in range(4)), np.zeros((n_dof, m)),
+                      Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
+                      np.zeros((6, sys0.nnz)), np.full(n_t, np.nan),
+                      np.zeros((probe, n if probe else 0)))
 
 
 def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
@@ -348,19 +360,21 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
     kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k)
 
 
-def _touched(sys0: System, ps, skip: np.ndarray | None = None) -> tuple:
+def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tuple:
     """The residual rows each variable's explicit part can write (``(RO (n_x + 1,), RI)``):
-    found by evaluating it once at a random state with random time values, where every row
-    its parts write is nonzero; none for the variables set in ``skip`` (their shares come
-    from the data gradient)."""
+    found by evaluating it once at a random state with random time values and unit weights,
+    where every row its parts write is nonzero; none for the variables set in ``skip``
+    (their shares come from the data gradient). The evaluation is a probe in the sweep's own
+    kernel (``a.probe``, :func:`~morphlab.kernels.adjoint._design_share`: one step at time
+    index 0 whose ``μ`` is given, on a record of that step), which takes the types of the run
+    (``stp`` its stepper, ``like`` a record and factor arrays of it, ``refine`` the sweep's):
+    the probe compiles nothing of its own."""
     from ..compile.system import time_table
-    from ..kernels.pseudo import explicit_column
     from ..kernels.types import Weights
 
     rng = np.random.default_rng(12345)
     n_dof, n_con = sys0.n_dof, sys0.n_con
     x = Level(*(rng.standard_normal(k) + 1.0 for k in (n_dof, n_dof, n_dof, n_con)))
-    w = Weights(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     T = time_table(sys0, np.zeros(1))
 
     def random(x):  # complex tables (the perturbed path's) with a random imaginary part too
@@ -376,16 +390,23 @@ def _touched(sys0: System, ps, skip: np.ndarray | None = None) -> tuple:
                              for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
-    c = Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype)
-    rows = []
-    for i in range(ps.PO.size - 1):
-        if skip is not None and skip[i]:
-            rows.append(np.zeros(0, np.int64))
-            continue
-        c.R[:] = 0.0
-        explicit_column(ps, sys0.arrays, T, i, x, w, 0, c)
-        rows.append(np.flatnonzero(c.R != 0.0))
-    RO = np.zeros(len(rows) + 1, dtype=np.int64)
+    n_x = ps.PO.size - 1
+    probed = np.arange(n_x) if skip is None else np.flatnonzero(~np.asarray(skip, bool))
+    columns = np.zeros((0, sys0.n))
+    if probed.size:
+        none = _data_gradient(sys0, ps, np.zeros(n_x, dtype=bool), 1)
+        a = _sweep_state(sys0, ps, 1, (np.zeros(n_x + 1, np.int64), np.zeros(0, np.int64)),
+                         (np.arange(probed.size + 1), probed, probed), none, 1,
+                         probe=probed.size)
+        sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
+        D = np.zeros(sys0.nnz) if refine is None else None
+        K, F = solved_step(like, x, x, D, D, 0)
+        kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0)
+        columns = a.probe
+    rows = [np.zeros(0, np.int64) for _ in range(n_x)]
+    for j, i in enumerate(probed):
+        rows[i] = np.flatnonzero(columns[j] != 0.0)
+    RO = np.zeros(n_x + 1, dtype=np.int64)
     RO[1:] = np.cumsum([r.size for r in rows])
     RI = np.concatenate(rows + [np.zeros(0, np.int64)]).astype(np.int64)
     return RO, RI
