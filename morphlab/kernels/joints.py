@@ -101,6 +101,12 @@ def reaction_directions(A, items, sides, q) -> np.ndarray:
     return out
 
 
+@inner(forceinline=True)
+def _at(w, d, zero):
+    """``w[d]``, or ``zero`` where the DOF ``d`` is absent (-1)."""
+    return w[d] if d >= 0 else zero
+
+
 @inlined
 def side_terms(kind, dofs, ux0, uy0, q, v, a):
     """Value, gradient and second-order terms of one side of a point or angle row (sign not
@@ -115,20 +121,20 @@ def side_terms(kind, dofs, ux0, uy0, q, v, a):
     # one scalar type for every returned value: that of the state and the point together
     zero = q[0] * 0.0 + ux0 * 0.0
     one = zero + 1.0
-    th = q[dofs[2]] if dofs[2] >= 0 else zero
-    vth = v[dofs[2]] if dofs[2] >= 0 else zero
-    ath = a[dofs[2]] if dofs[2] >= 0 else zero
+    th = _at(q, dofs[2], zero)
+    vth = _at(v, dofs[2], zero)
+    ath = _at(a, dofs[2], zero)
     if kind == ROW_ANGLE or kind == ROW_GEAR:
-        phi = q[dofs[5]] if dofs[5] >= 0 else zero
+        phi = _at(q, dofs[5], zero)
         z6 = (zero, zero, zero, zero, zero, zero)
         return th + phi + zero, zero, (zero, zero, one, zero, zero, one), z6, z6, z6
-    wx = q[dofs[3]] if dofs[3] >= 0 else zero
-    vwx = v[dofs[3]] if dofs[3] >= 0 else zero
-    awx = a[dofs[3]] if dofs[3] >= 0 else zero
-    wy = q[dofs[4]] if dofs[4] >= 0 else zero
-    vwy = v[dofs[4]] if dofs[4] >= 0 else zero
-    awy = a[dofs[4]] if dofs[4] >= 0 else zero
-    Rk = q[dofs[kind]] if dofs[kind] >= 0 else zero
+    wx = _at(q, dofs[3], zero)
+    vwx = _at(v, dofs[3], zero)
+    awx = _at(a, dofs[3], zero)
+    wy = _at(q, dofs[4], zero)
+    vwy = _at(v, dofs[4], zero)
+    awy = _at(a, dofs[4], zero)
+    Rk = _at(q, dofs[kind], zero)
     c = np.cos(th) + zero
     s = np.sin(th) + zero
     ux = ux0 + wx
