@@ -113,9 +113,10 @@ def check_step_matrix_by_complex_step(model, seed: int) -> None:
     step residual (h = 1e-30: no truncation or cancellation error, so agreement to round-off;
     1e-9 of the column's largest entry) at a random state far from any solution: nonzero
     velocities, accelerations and multipliers, so every term of the matrix shows. The split
-    matrices ``D0, Dq, Dv`` of the sensitivity methods (one pass with ``C`` the identity)
-    combine to the step matrix (round-off) and each is the complex-step derivative of the
-    residual along ``(a, lam/scale)``, ``q`` and ``q'`` with the other two held."""
+    matrices ``D0, Dq, Dv`` of the sensitivity methods (a pass with ``C`` the identity)
+    combine to the step matrix of a pass of its own (round-off) and each is the complex-step
+    derivative of the residual along ``(a, lam/scale)``, ``q`` and ``q'`` with the other two
+    held."""
     from morphlab.kernels.assemble import matrix, residual
     from morphlab.kernels.ffrf import scratch
     from morphlab.kernels.system import all_parts
@@ -128,10 +129,10 @@ def check_step_matrix_by_complex_step(model, seed: int) -> None:
     M = system.arrays
     Mc = system.arrays_as(np.complex128)
     n_flex = M.flex[0].shape[0]
-    C = np.array([[1.0, bh2, gh], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    data = np.zeros((4, system.nnz))
-    matrix(M, _level(z, qh, vh, bh2, gh, w.scale, n_dof), w, T, np.int64(0), np.int64(0), C,
-           data, scratch(n_flex, qh))
+    data = np.zeros((4, system.nnz))  # the step matrix, then D0, Dq, Dv in a second pass
+    for C, out in ((np.array([[1.0, bh2, gh]]), data[0:1]), (np.eye(3), data[1:4])):
+        matrix(M, _level(z, qh, vh, bh2, gh, w.scale, n_dof), w, T, np.int64(0), np.int64(0),
+               C, out, scratch(n_flex, qh))
     A = np.zeros((n, n))
     for col in range(n):
         sl = slice(system.indptr[col], system.indptr[col + 1])

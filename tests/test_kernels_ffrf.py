@@ -343,3 +343,19 @@ def test_part_residual_equals_the_residual_over_the_same_parts(system, state):
         assert np.array_equal(R_part, R_full), trial
         assert np.abs(R_part).max() > 1e-3 * np.abs(body_residual(system, S, q, v, a, 0.7,
                                                                    0.9)).max(), trial
+
+
+@pytest.mark.parametrize("C", [np.eye(3)[:2], np.eye(3)[[0, 2, 1]], np.ones((3, 3)),
+                               np.eye(4)[:, :3]],
+                         ids=["two rows", "rows swapped", "combinations", "four rows"])
+def test_step_matrix_refuses_coefficients_of_another_form(system, state, C):
+    """The fill writes ``Dq``, ``Dv`` to outputs 1 and 2 without reading ``C``'s last rows
+    (``kernels.types``): a ``C`` of another form is refused, not filled wrongly."""
+    q, v, a = state
+    M = arrays(system, float)
+    x = Level(q, v, a, np.zeros(system.n_con))
+    w = Weights(1.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    data = np.zeros((C.shape[0], system.nnz))
+    with pytest.raises(ValueError, match="one row, or three"):
+        assemble.matrix(M, x, w, time_table(system, np.zeros(1)), np.int64(0), np.int64(0), C,
+                        data, ffrf.scratch(system.count("flex"), q))

@@ -66,10 +66,10 @@ def _blocks(system, q, lam):
     zero velocity) reduced to the null space of the constraint Jacobian."""
     n_dof = system.n_dof
     z = np.zeros(n_dof)
-    data = np.zeros((2, system.nnz))
+    data = np.zeros((3, system.nnz))
     w = Weights(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0)
     matrix(system.arrays, Level(q, z, z, lam), w, time_table(system, np.array([1.0])), 0, 0,
-           np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), data, scratch(system.count("flex"), z))
+           np.eye(3), data, scratch(system.count("flex"), z))
 
     def dense(d):
         return sp.csc_matrix((d, system.indices, system.indptr),

@@ -89,7 +89,13 @@ def matrix(M, x, w, T, t, k, C, out, W):
     """Overwrite ``out`` (m, nnz) with the derivatives of the residual share of ``x``: output
     ``r`` gets ``C[r, 0] D0 + C[r, 1] Dq + C[r, 2] Dv`` (``D0 = dR/d(a, lam/scale)`` with ``q,
     q'`` held, ``Dq = dR/dq``, ``Dv = dR/dq'``; :mod:`morphlab.kernels.types`). One pass over
-    the model, whatever ``m``."""
+    the model, whatever ``m``. ``C``: one row, or three whose last two are ``(0, 1, 0)`` and
+    ``(0, 0, 1)`` (:mod:`morphlab.kernels.types`; ValueError for another)."""
+    if not (C.shape[0] == 1 or (C.shape[0] == 3 and C[1, 0] == 0.0 and C[1, 1] == 1.0
+                                and C[1, 2] == 0.0 and C[2, 0] == 0.0 and C[2, 1] == 0.0
+                                and C[2, 2] == 1.0)):
+        raise ValueError("the step matrix's coefficients C must be one row, or three whose "
+                         "last two are (0, 1, 0) and (0, 0, 1)")
     for r in range(out.shape[0]):
         for p in range(out.shape[1]):
             out[r, p] = 0.0

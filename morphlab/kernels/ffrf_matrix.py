@@ -6,13 +6,7 @@ import numpy as np
 
 from ._jit import inner
 from .ffrf import _clear, _gather, _products, _sums, frame
-
-
-@inner
-def add_split(out, C, p, x0, xq, xv):
-    """``out[r, p] += C[r, 0] x0 + C[r, 1] xq + C[r, 2] xv`` for every output ``r``."""
-    for r in range(C.shape[0]):
-        out[r, p] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
+from .types import add_split
 
 
 @inner

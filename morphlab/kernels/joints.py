@@ -37,6 +37,7 @@ import numpy as np
 
 from ._jit import inlined, inner, kernel
 from .schema import Kind, design, pattern, register, timed, topology
+from .types import add_split
 
 #: Kinds of constraint rows (``rows.kind``; module docstring).
 ROW_X, ROW_Y, ROW_ANGLE, ROW_GEAR = 0, 1, 2, 3
@@ -250,11 +251,9 @@ def add_row_entries(w, C, gr, hv, ha, dvhv, p_row, p_col, out):
     xq = w.scale * (w.wcm * ha - w.wcf * dFc_dq)
     xv = -w.scale * w.wcf * dFc_dv
     if p_row >= 0:
-        for r in range(C.shape[0]):
-            out[r, p_row] += C[r, 0] * x0 + C[r, 1] * xq + C[r, 2] * xv
-    if p_col >= 0:
-        for r in range(C.shape[0]):
-            out[r, p_col] += C[r, 0] * w.wl * w.scale * gr
+        add_split(out, C, p_row, x0, xq, xv)
+    if p_col >= 0:  # along the multiplier: D0 alone
+        out[0, p_col] += C[0, 0] * w.wl * w.scale * gr
 
 
 @inner
