@@ -265,3 +265,64 @@ def test_a_thickness_per_element_of_one_frame_keeps_the_direct_methods_digits():
     scale = max(abs(g) for g in d["tip_y"].values())
     worst = max(abs(a["tip_y"][v] - d["tip_y"][v]) for v in p0)
     assert worst <= 2e-12 * scale, worst / scale
+
+
+def _threads_of_builds(build):
+    """``build`` that notes the thread of each call with a complex (perturbed) design."""
+    import threading
+
+    seen = []
+
+    def traced(p):
+        if any(np.iscomplexobj(v) for v in p.values()):
+            seen.append(threading.current_thread().name)
+        return build(p)
+
+    return traced, seen
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_design_data_formed_beside_the_primal_give_the_same_bits(name):
+    """The variables' changes and pseudo-load data formed in the worker thread while the
+    primal's compiled steps run (``sensitivity/beside.py``) or in the caller's thread after
+    them: the same calls on the same data, so the same values and gradients bit for bit; and
+    the perturbed designs were really built in the worker thread in the first case."""
+    from morphlab.sensitivity import Adjoint
+
+    build, p0, resp = adjoint_responses(name)
+    runs = {}
+    for overlap in (True, False):
+        traced, seen = _threads_of_builds(build)
+        runs[overlap] = ml.sensitivities(traced, p0, resp, method=Adjoint(overlap=overlap),
+                                         **RUN)
+        where = {"morphlab-beside" if t.startswith("morphlab-beside") else t for t in seen}
+        assert len(seen) == len(p0) and where == ({"morphlab-beside"} if overlap else
+                                                  {"MainThread"}), (overlap, seen)
+    assert runs[True].values == runs[False].values
+    for r in resp:
+        assert runs[True].gradients[r] == runs[False].gradients[r], r
+
+
+def test_a_failure_beside_the_primal_stops_the_run_at_a_chunk_boundary():
+    """A variable ``build`` does not use, found in the worker thread: the SensitivityError is
+    raised from the primal run at the chunk boundary after the worker failed (the hook's
+    ``after_chunk`` in the traceback), not after the whole run. 3000 steps in chunks of one
+    step (``chunk_seconds=0``): the worker has the whole run to fail in."""
+    import traceback
+
+    from morphlab.sensitivity import Adjoint
+
+    build, p0, resp = adjoint_responses("pendulum")
+    with pytest.raises(ml.SensitivityError, match="'unused' is not used by build") as err:
+        ml.sensitivities(build, dict(p0, unused=1.0), resp, method=Adjoint(overlap=True),
+                         t_end=3.0, dt=1e-3, chunk_seconds=0.0)
+    frames = [f.name for f in traceback.extract_tb(err.value.__traceback__)]
+    assert frames.index("integrate") < frames.index("after_chunk") < frames.index("changes"), \
+        frames
+
+
+def test_overlap_is_a_boolean_or_none():
+    from morphlab.sensitivity import Adjoint
+
+    with pytest.raises(ml.SensitivityError, match="overlap must be True, False or None"):
+        Adjoint(overlap="yes")

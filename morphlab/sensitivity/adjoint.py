@@ -38,6 +38,7 @@ from ..solve.record import keep_record, release, solved_step, template
 from ..solve.scheme import kernel_scheme
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
+from .beside import Beside
 from .direct import converged_blocks
 from .histories import to_store
 from .units import bodies_linear, share_units
@@ -62,8 +63,10 @@ def _level(st) -> Level:
 class AdjointHook(StepHook):
     """Records the steps of the primal run for the sweep (module docstring)."""
 
-    def __init__(self, system: System, n_steps: int, memory: int, reuse: bool):
+    def __init__(self, system: System, n_steps: int, memory: int, reuse: bool,
+                 beside: Beside | None = None):
         self.system, self.n_steps, self.memory = system, n_steps, memory
+        self.beside = beside  # work started after the first compiled chunk (module beside)
         self.rows = 3 if reuse else 1
         self.python: dict[int, _PythonStep] = {}
         # the Keeps of the compiled steps, each from its first step to the end of the run; a
@@ -78,6 +81,8 @@ class AdjointHook(StepHook):
         self.stepper, self.hist = stepper, hist
 
     def python_step(self, k: int, out) -> None:
+        if k > 0:
+            self._beside()
         data = self.stepper.newton.data
         old = _level(out.state) if k == 0 else _level(self.hist.state(k - 1))
         Dq = Dv = None
@@ -88,6 +93,15 @@ class AdjointHook(StepHook):
         elif self.rows == 3:
             Dq, Dv = data[1].copy(), data[2].copy()
         self.python[k] = _PythonStep(out.factor, Dq, Dv, _level(out.state), old)
+
+    def after_chunk(self, k0: int, k: int) -> None:
+        self._beside()
+
+    def _beside(self) -> None:
+        """Start the work beside the run (once), raise its error if it has failed."""
+        if self.beside is not None:
+            self.beside.start()
+            self.beside.check()
 
     def _per_step(self, F) -> int:
         s = self.system
@@ -206,24 +220,26 @@ def _data_terms(vjps: list[ResponseVJP], sys0: System, changes: list) -> np.ndar
     return out
 
 
-def adjoint_run(sys0: System, settings: Settings, responses: dict, ps, dq0, dv0,
-                changes: list, *, reuse: bool = True, refine: int = 1,
-                memory: int = 2**30, progress=False):
+def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Beside, *,
+                reuse: bool = True, refine: int = 1, memory: int = 2**30, progress=False):
     """The primal run, the responses' gradients and the backward sweep (module docstring).
 
-    ``ps``: the pseudo-load data (:class:`~morphlab.kernels.pseudo.Pseudo`) with the residual
-    rows each variable touches, ``dq0``, ``dv0`` (n_dof, n_x): the derivatives of the initial
-    state, ``changes``: the variables' complex-step changes
-    (:class:`~morphlab.sensitivity.designs.Change`; their systems for the responses' data
-    terms). Returns ``(result, values, gradients, timing, stats)`` with ``values[name]`` and
+    ``design``: what the sweep reads of the variables, ``(ps, dq0, dv0, changes)`` — the
+    pseudo-load data (:class:`~morphlab.kernels.pseudo.Pseudo`) with the residual rows each
+    variable touches, the derivatives of the initial state (n_dof, n_x) each and the
+    variables' complex-step changes (:class:`~morphlab.sensitivity.designs.Change`; their
+    systems for the responses' data terms) — formed beside the primal run
+    (:class:`~morphlab.sensitivity.beside.Beside`, started after its first compiled chunk).
+    Returns ``(result, values, gradients, timing, stats)`` with ``values[name]`` and
     ``gradients[name]`` (n_x,) in the order of the variables."""
-    hook = AdjointHook(sys0, settings.n_steps, memory, reuse)
+    hook = AdjointHook(sys0, settings.n_steps, memory, reuse, design)
     t0 = _time.perf_counter()
     kept = to_store("auto", responses, sys0, settings)
     res0 = integrate(sys0, settings, hook=hook, progress=progress, store=kept)
     t_primal = _time.perf_counter() - t0
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
+    ps, dq0, dv0, changes = design.result()
     m = len(vjps)
     n_x = dq0.shape[1]
     exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)

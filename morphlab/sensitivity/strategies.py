@@ -34,6 +34,7 @@ from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint import adjoint_run
+from .beside import Beside, spare_core
 from .designs import CS_STEP, changes, compile_perturbed, pseudo_data, relative_steps
 from .direct import direct_run
 from .histories import HISTORIES, to_store
@@ -207,11 +208,17 @@ class Adjoint(Strategy):
     memory : int
         Bytes of the primal's record the sweep reads (factors, matrices, states); a longer
         run keeps checkpoints instead and recomputes each segment of steps once more.
+    overlap : bool, optional
+        Form the variables' changes and pseudo-load data in a thread while the primal's
+        compiled steps run (:mod:`morphlab.sensitivity.beside`: the same results, the wall
+        time of the set-up hidden, its CPU time not); None (the default): where the process
+        may use a second core.
     """
 
     reuse: bool = True
     refine: int = 1
     memory: int = 2**30
+    overlap: bool | None = None
 
     name = "adjoint"
 
@@ -220,16 +227,24 @@ class Adjoint(Strategy):
         if not (isinstance(self.memory, int) and self.memory > 0):
             raise SensitivityError(f"Adjoint: memory must be a positive integer of bytes, got "
                                    f"{self.memory!r}")
+        if self.overlap not in (None, True, False):
+            raise SensitivityError(f"Adjoint: overlap must be True, False or None, got "
+                                   f"{self.overlap!r}")
 
     def run(self, setup: Setup) -> Run:
-        cs = setup.complex_changes
-        T0 = time_table(setup.sys0, setup.times)
-        ps = pseudo_data(setup.sys0, cs, np.full(len(setup.names), 1j * CS_STEP), T0)
-        dq0 = np.stack([ch.dq0 for ch in cs], axis=1)
-        dv0 = np.stack([ch.dv0 for ch in cs], axis=1)
+        def design():  # what the sweep reads of the variables (module beside)
+            cs = setup.complex_changes
+            T0 = time_table(setup.sys0, setup.times)
+            ps = pseudo_data(setup.sys0, cs, np.full(len(setup.names), 1j * CS_STEP), T0)
+            dq0 = np.stack([ch.dq0 for ch in cs], axis=1)
+            dv0 = np.stack([ch.dv0 for ch in cs], axis=1)
+            return ps, dq0, dv0, cs
+
+        overlap = spare_core() if self.overlap is None else self.overlap
         res0, values, gradients, timing, stats = adjoint_run(
-            setup.sys0, setup.settings, setup.responses, ps, dq0, dv0, cs, reuse=self.reuse,
-            refine=self.refine, memory=self.memory, progress=setup.progress)
+            setup.sys0, setup.settings, setup.responses, Beside(design, overlap),
+            reuse=self.reuse, refine=self.refine, memory=self.memory,
+            progress=setup.progress)
         return Run(res0, [], {}, timing, stats, values, gradients)
 
 

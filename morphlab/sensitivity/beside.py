@@ -1,0 +1,91 @@
+"""Work a gradient needs only after the primal run, done beside it on a spare core.
+
+The adjoint reads the variables' changes and the pseudo-load data
+(:func:`~morphlab.sensitivity.designs.changes`, :func:`~morphlab.sensitivity.designs.
+pseudo_data`) when its backward sweep begins, after the primal run. Forming them is Python and
+NumPy work: the user's ``build`` once per variable, then each changed design's rows. The
+primal's compiled steps (:func:`~morphlab.kernels.steps.run_steps`) release the interpreter
+lock, so where the process may use a second core that work runs in a thread while the steps
+run. The gradient then takes the wall time of the primal and the sweep, not of their sum with
+the set-up; the CPU time is the same, and so are the results, bit for bit (the same calls in
+another thread; the primal reads the nominal system only).
+
+:class:`Beside` is started by the run's hook after the first compiled chunk of steps (not
+before, where it would compete with the run's own Python set-up for the interpreter), and a
+failure of the work (a variable ``build`` does not use, a design that changes the structure)
+is raised at the next chunk boundary, at most ``Settings.chunk_seconds`` of steps later, not at
+the end of the run. With one usable core, or ``overlap=False``, the work runs where the sweep
+asks for it, in the caller's thread.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+
+_POOL: dict = {}
+_LOCK = threading.Lock()
+
+
+def spare_core() -> bool:
+    """May this process use more than one core (its CPU affinity, else the core count)?"""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - platforms without affinity (macOS, Windows)
+        n = os.cpu_count() or 1
+    return n >= 2
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The one worker thread of the process (made on first use; later uses queue on it)."""
+    with _LOCK:
+        if "pool" not in _POOL:
+            _POOL["pool"] = ThreadPoolExecutor(max_workers=1,
+                                               thread_name_prefix="morphlab-beside")
+        return _POOL["pool"]
+
+
+class Beside:
+    """``fn()`` computed beside the primal run (module docstring).
+
+    Parameters
+    ----------
+    fn : callable
+        The work, without arguments; it must read nothing the primal run writes.
+    overlap : bool
+        Run it in the worker thread once :meth:`start` is called; False: in the caller's
+        thread, when :meth:`result` is first asked for.
+    """
+
+    def __init__(self, fn: Callable[[], object], overlap: bool):
+        self.fn, self.overlap = fn, overlap
+        self.future: Future | None = None
+        self._value = None
+        self._done = False
+
+    @property
+    def started(self) -> bool:
+        """Has the work been handed to the worker thread?"""
+        return self.future is not None
+
+    def start(self) -> None:
+        """Hand the work to the worker thread (once; nothing without ``overlap``)."""
+        if self.overlap and self.future is None and not self._done:
+            self.future = _pool().submit(self.fn)
+
+    def check(self) -> None:
+        """Raise the work's error now if it has already failed (between chunks of steps)."""
+        f = self.future
+        if f is not None and f.done() and f.exception() is not None:
+            f.result()  # raises it, with its traceback
+
+    def result(self):
+        """The work's value: waited for if it runs beside, computed here if it never started;
+        its error raised."""
+        if self.future is not None:
+            return self.future.result()
+        if not self._done:
+            self._value, self._done = self.fn(), True
+        return self._value
