@@ -23,10 +23,19 @@ from ..studies.timing import interleaved_times, time_stats
 
 def rounds(fns: dict, repeats: int) -> tuple[dict, dict]:
     """One untimed call of each function (its value kept), then ``repeats`` interleaved
-    rounds: ``({name: time_stats}, {name: value of the untimed call})``."""
+    rounds: ``({name: time_stats with "cpu_median"}, {name: value of the untimed call})``
+    (:func:`with_cpu`)."""
     values = {k: fn() for k, fn in fns.items()}
-    times = interleaved_times(fns, repeats)
-    return {k: time_stats(v) for k, v in times.items()}, values
+    cpu: dict = {}
+    times = interleaved_times(fns, repeats, cpu=cpu)
+    return {k: with_cpu(v, cpu[k]) for k, v in times.items()}, values
+
+
+def with_cpu(wall: list, cpu: list) -> dict:
+    """:func:`~morphlab.studies.timing.time_stats` of the wall times, with the median of the
+    process CPU times of the same calls (``cpu_median``: the adjoint forms its design data on
+    a second core while the primal runs, which the wall time does not count)."""
+    return {**time_stats(wall), "cpu_median": float(np.median(cpu))}
 
 
 def gradient_difference(a, b) -> float:
@@ -78,7 +87,7 @@ def case_morphing(repeats: int, quick: bool, *, settings: Settings | None = None
             raise RuntimeError(f"method {name!r} failed on the morphing defaults: "
                                f"{type(exc).__name__}: {exc}") from exc
     t2 = _timing(build, p0, resp, settings, repeats, fd_step)
-    table2 = {k: time_stats(t2[f"{k}_runs"]) for k in (
+    table2 = {k: with_cpu(t2[f"{k}_runs"], t2[f"{k}_cpu_runs"]) for k in (
         "primal", "primal_solver_only", "direct", "direct_fd", "adjoint", "finite_difference")}
     second, values = rounds({"primal": _primal(build, p0, resp, settings),
                              "auto": _method(build, p0, resp, settings, "auto"),
@@ -88,6 +97,9 @@ def case_morphing(repeats: int, quick: bool, *, settings: Settings | None = None
     best = min(med["direct"], med["adjoint"])
     ratios = {f"{k}_over_primal": med[k] / med["primal"] for k in (
         "direct", "direct_fd", "adjoint", "finite_difference")}
+    cpu = {k: v["cpu_median"] for k, v in table2.items()}
+    ratios.update({f"{k}_cpu_over_primal": cpu[k] / cpu["primal"] for k in (
+        "direct", "direct_fd", "adjoint", "finite_difference")})
     ratios.update({"best_over_primal": best / med["primal"],
                    "finite_difference_over_best": med["finite_difference"] / best,
                    "finite_difference_over_direct": med["finite_difference"] / med["direct"],
@@ -154,6 +166,8 @@ def case_pendulum(repeats: int, quick: bool) -> dict:
         "n_elements": n_el, "n_x": n_el, "steps": n_steps, "responses": list(resp),
         "settings": dataclasses.asdict(settings), "seconds": t,
         "ratios": {**{f"{m}_over_primal": t[m]["median"] / prim
+                      for m in ("direct", "adjoint", "auto")},
+                   **{f"{m}_cpu_over_primal": t[m]["cpu_median"] / t["primal"]["cpu_median"]
                       for m in ("direct", "adjoint", "auto")},
                    "best_over_primal": best / prim},
         "auto_chose": values["auto"].method,

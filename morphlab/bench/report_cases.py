@@ -30,6 +30,13 @@ def ratio(st: dict, primal: float) -> str:
     return f"{st['median'] / primal:.2f} ({st['min'] / primal:.2f}–{st['max'] / primal:.2f})"
 
 
+def cpu_ratio(st: dict, primal: dict) -> str:
+    """A method's median process CPU time over the primal's (blank for a record without)."""
+    if "cpu_median" not in st or "cpu_median" not in primal:
+        return ""
+    return f"{st['cpu_median'] / primal['cpu_median']:.2f}"
+
+
 def _scenario_rows(r: dict, check) -> list[str]:
     sc = r["scenarios"]
     rows = ["| first use, empty cache | process CPU [s] | wall [s] | target [CPU-s] |",
@@ -123,24 +130,33 @@ def morphing(r: dict, check) -> list[str]:
     def pap(k):
         return f"{paper[k] / pp:.2f}" if pp and k in paper else ""
 
-    lines = ["| run (5 variables, 3 responses) | median [s] | / primal | paper |",
-             "|---|---|---|---|",
-             f"| primal: build, compile, simulate, responses | {s3(t['primal'])} | 1 | 1 |",
+    P, P2 = t["primal"], s["primal"]
+    lines = ["| run (5 variables, 3 responses) | median [s] | / primal | CPU / primal | paper |",
+             "|---|---|---|---|---|",
+             f"| primal: build, compile, simulate, responses | {s3(t['primal'])} | 1 | 1 | 1 |",
              f"| simulate a compiled model only | {s3(t['primal_solver_only'])} | "
-             f"{ratio(t['primal_solver_only'], prim)} | |",
-             f"| direct | {s3(t['direct'])} | {ratio(t['direct'], prim)} | |",
+             f"{ratio(t['primal_solver_only'], prim)} | "
+             f"{cpu_ratio(t['primal_solver_only'], P)} | |",
+             f"| direct | {s3(t['direct'])} | {ratio(t['direct'], prim)} | "
+             f"{cpu_ratio(t['direct'], P)} | |",
              f"| direct-fd (the paper's semi-analytical) | {s3(t['direct_fd'])} | "
-             f"{ratio(t['direct_fd'], prim)} | {pap('direct')} |",
-             f"| adjoint | {s3(t['adjoint'])} | {ratio(t['adjoint'], prim)} | |",
+             f"{ratio(t['direct_fd'], prim)} | {cpu_ratio(t['direct_fd'], P)} | "
+             f"{pap('direct')} |",
+             f"| adjoint | {s3(t['adjoint'])} | {ratio(t['adjoint'], prim)} | "
+             f"{cpu_ratio(t['adjoint'], P)} | |",
              f"| finite differences (n_x + 1 runs) | {s3(t['finite_difference'])} | "
-             f"{ratio(t['finite_difference'], prim)} | {pap('finite_difference')} |",
-             f"| second set: primal | {s3(s['primal'])} | 1 | |",
+             f"{ratio(t['finite_difference'], prim)} | {cpu_ratio(t['finite_difference'], P)} "
+             f"| {pap('finite_difference')} |",
+             f"| second set: primal | {s3(s['primal'])} | 1 | 1 | |",
              f"| second set: auto (ran {r['auto_chose']}) | {s3(s['auto'])} | "
-             f"{ratio(s['auto'], prim2)} | |",
+             f"{ratio(s['auto'], prim2)} | {cpu_ratio(s['auto'], P2)} | |",
              f"| second set: complex step (whole runs) | {s3(s['complex_step'])} | "
-             f"{ratio(s['complex_step'], prim2)} | |", ""]
+             f"{ratio(s['complex_step'], prim2)} | {cpu_ratio(s['complex_step'], P2)} | |", ""]
     g = r["gradient_difference_to_complex_step"]
-    lines += [f"Best / primal {rt['best_over_primal']:.2f}: target "
+    cpu_note = (f" (wall time; in process CPU time the adjoint costs "
+                f"{rt['adjoint_cpu_over_primal']:.2f}, direct {rt['direct_cpu_over_primal']:.2f})"
+                if "adjoint_cpu_over_primal" in rt else "")
+    lines += [f"Best / primal {rt['best_over_primal']:.2f}{cpu_note}: target "
               f"{check('morphing.best_over_primal', rt['best_over_primal'])}. Finite "
               f"differences / best {rt['finite_difference_over_best']:.2f}: target "
               f"{check('morphing.finite_difference_over_best', rt['finite_difference_over_best'])}"
@@ -182,13 +198,16 @@ def pendulum(r: dict, check) -> list[str]:
     t, p = r["seconds"], r["seconds"]["primal"]["median"]
     lines = [f"{r['n_elements']} elements, {r['n_x']} thickness variables, response "
              f"{', '.join(r['responses'])}, {r['steps']} steps.", "",
-             "| run | median [s] | / primal |", "|---|---|---|",
-             f"| primal: build, compile, simulate, response | {s3(t['primal'])} | 1 |"]
+             "| run | median [s] | / primal | CPU / primal |", "|---|---|---|---|",
+             f"| primal: build, compile, simulate, response | {s3(t['primal'])} | 1 | 1 |"]
     for m in ("direct", "adjoint", "auto"):
         label = f"auto (ran {r['auto_chose']})" if m == "auto" else m
-        lines.append(f"| {label} | {s3(t[m])} | {ratio(t[m], p)} |")
+        lines.append(f"| {label} | {s3(t[m])} | {ratio(t[m], p)} | "
+                     f"{cpu_ratio(t[m], t['primal'])} |")
     b = r["ratios"]["best_over_primal"]
-    return lines + ["", f"Best / primal {b:.2f}: target "
+    cpu = r["ratios"].get("adjoint_cpu_over_primal")
+    cpu_note = "" if cpu is None else f" (wall time; the adjoint's CPU time {cpu:.2f} primal's)"
+    return lines + ["", f"Best / primal {b:.2f}{cpu_note}: target "
                         f"{check('pendulum.best_over_primal', b)}; adjoint gradient within "
                         f"{r['adjoint_vs_direct']:.1e} of direct.", ""]
 

@@ -22,7 +22,7 @@ from ..results.responses import distance
 from ..sensitivity.api import sensitivities
 from ..sensitivity.strategies import Direct, FiniteDifference
 from ..solve.settings import Settings
-from ..studies.timing import interleaved_times, median_time
+from ..studies.timing import interleaved_times
 
 
 @dataclass
@@ -106,7 +106,8 @@ def _timing(build, p0: dict, responses: dict, settings: Settings, repeats: int,
             fd_step: float) -> dict:
     """Table 2: medians [s] of interleaved rounds of the primal (as a user runs it: build,
     simulate, responses), the solver alone, direct with complex-step and with
-    forward-difference partials, and finite differences; with their ratios."""
+    forward-difference partials, and finite differences; with their ratios (of wall times)
+    and each run's process CPU times (``*_cpu_runs``)."""
     from ..compile import compile_model
     from ..solve.timeloop import simulate
 
@@ -128,13 +129,22 @@ def _timing(build, p0: dict, responses: dict, settings: Settings, repeats: int,
                                          settings=settings),
     }
     timing_s: dict = {}
-    for k, times in interleaved_times(runs, repeats).items():
+    cpu: dict = {}
+    for k, times in interleaved_times(runs, repeats, cpu=cpu).items():
         timing_s[k], timing_s[f"{k}_runs"] = statistics.median(times), times
-    timing_s["finite_difference"], timing_s["finite_difference_runs"] = median_time(
-        lambda: sensitivities(build, p0, responses, method=FiniteDifference("forward", fd_step),
-                              settings=settings), max(1, repeats // 2))
+        timing_s[f"{k}_cpu_runs"] = cpu[k]
+    fd_cpu: dict = {}
+    fd = interleaved_times({"fd": lambda: sensitivities(
+        build, p0, responses, method=FiniteDifference("forward", fd_step), settings=settings)},
+        max(1, repeats // 2), cpu=fd_cpu)["fd"]
+    timing_s["finite_difference"], timing_s["finite_difference_runs"] = (
+        statistics.median(fd), fd)
+    timing_s["finite_difference_cpu_runs"] = fd_cpu["fd"]
+    cpu_primal = statistics.median(timing_s["primal_cpu_runs"])
     for k in ("direct", "direct_fd", "adjoint", "finite_difference"):
         timing_s[f"{k}_over_primal"] = timing_s[k] / timing_s["primal"]
+        timing_s[f"{k}_cpu_over_primal"] = (statistics.median(timing_s[f"{k}_cpu_runs"])
+                                            / cpu_primal)
     timing_s["finite_difference_over_direct"] = (timing_s["finite_difference"]
                                                  / timing_s["direct"])
     best = min(timing_s["direct"], timing_s["adjoint"])

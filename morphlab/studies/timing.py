@@ -1,4 +1,4 @@
-"""Wall-clock timing of whole runs, for comparisons formed within one process."""
+"""Wall-clock (and CPU) timing of whole runs, for comparisons formed within one process."""
 
 from __future__ import annotations
 
@@ -7,15 +7,22 @@ import time
 from collections.abc import Callable
 
 
-def interleaved_times(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, list]:
+def interleaved_times(fns: dict[str, Callable[[], object]], repeats: int, *,
+                      cpu: dict | None = None) -> dict[str, list]:
     """Wall times [s] of each function over ``repeats`` rounds that call every function once,
-    in turn, so that a change of the machine's load hits all of them alike."""
+    in turn, so that a change of the machine's load hits all of them alike. ``cpu``: a dict
+    that receives, per function, the process's CPU times [s] of the same calls (all its
+    threads: a call that works on two cores counts both)."""
     times: dict = {k: [] for k in fns}
+    if cpu is not None:
+        cpu.update({k: [] for k in fns})
     for _ in range(repeats):
         for k, fn in fns.items():
-            t0 = time.perf_counter()
+            c0, t0 = time.process_time(), time.perf_counter()
             fn()
             times[k].append(time.perf_counter() - t0)
+            if cpu is not None:
+                cpu[k].append(time.process_time() - c0)
     return times
 
 
