@@ -20,6 +20,7 @@ after the sweep (:mod:`morphlab.kernels.ffrf_adjoint`).
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -220,36 +221,41 @@ def _data_terms(vjps: list[ResponseVJP], sys0: System, changes: list) -> np.ndar
     return out
 
 
-def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Beside, *,
-                reuse: bool = True, refine: int = 1, memory: int = 2**30, progress=False):
+def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Callable[[], tuple],
+                *, overlap: bool = False, reuse: bool = True, refine: int = 1,
+                memory: int = 2**30, progress=False):
     """The primal run, the responses' gradients and the backward sweep (module docstring).
 
-    ``design``: what the sweep reads of the variables, ``(ps, dq0, dv0, changes)`` — the
+    ``design()``: what the sweep reads of the variables, ``(ps, dq0, dv0, changes)`` — the
     pseudo-load data (:class:`~morphlab.kernels.pseudo.Pseudo`) with the residual rows each
     variable touches, the derivatives of the initial state (n_dof, n_x) each and the
     variables' complex-step changes (:class:`~morphlab.sensitivity.designs.Change`; their
-    systems for the responses' data terms) — formed beside the primal run
-    (:class:`~morphlab.sensitivity.beside.Beside`, started after its first compiled chunk).
-    Returns ``(result, values, gradients, timing, stats)`` with ``values[name]`` and
-    ``gradients[name]`` (n_x,) in the order of the variables."""
-    hook = AdjointHook(sys0, settings.n_steps, memory, reuse, design)
+    systems for the responses' data terms). With ``overlap`` it is called, and the bodies'
+    data gradient laid out, in a worker thread while the primal's compiled steps run
+    (:class:`~morphlab.sensitivity.beside.Beside`, started after the first compiled chunk);
+    else after the primal run. Returns ``(result, values, gradients, timing, stats)`` with
+    ``values[name]`` and ``gradients[name]`` (n_x,) in the order of the variables."""
+    m = len(responses)
+
+    def prepared():  # the design data and what follows from them alone
+        ps, dq0, dv0, changes = design()
+        lumped = bodies_linear(ps, dq0.shape[1])
+        return ps, dq0, dv0, changes, lumped, _data_gradient(sys0, ps, lumped, m)
+
+    hook = AdjointHook(sys0, settings.n_steps, memory, reuse, Beside(prepared, overlap))
     t0 = _time.perf_counter()
     kept = to_store("auto", responses, sys0, settings)
     res0 = integrate(sys0, settings, hook=hook, progress=progress, store=kept)
     t_primal = _time.perf_counter() - t0
     names = list(responses)
     vjps = [response_vjp(k, responses[k], res0) for k in names]
-    ps, dq0, dv0, changes = design.result()
-    m = len(vjps)
-    n_x = dq0.shape[1]
+    ps, dq0, dv0, changes, lumped, (GD, GO, KS) = hook.beside.result()
     exact = None if reuse else refine  # the sweep's ``refine`` (None: the reuse variant)
     stp = hook.stepper
     # a record and factor arrays the sweep takes (its types for the steps solved from Python)
     like = ((hook.records[-1], hook.patterns[-1]) if hook.records else
             template(sys0, stp.newton.factorization, hook.rows == 3))
-    lumped = bodies_linear(ps, n_x)
     RO, RI = _touched(sys0, ps, lumped, stp, like, exact)
-    GD, GO, KS = _data_gradient(sys0, ps, lumped, m)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     a = _sweep_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS), settings.n_steps + 1)
@@ -388,6 +394,11 @@ def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tu
     from ..compile.system import time_table
     from ..kernels.types import Weights
 
+    n_x = ps.PO.size - 1
+    probed = np.arange(n_x) if skip is None else np.flatnonzero(~np.asarray(skip, bool))
+    rows = [np.zeros(0, np.int64) for _ in range(n_x)]
+    if not probed.size:  # every variable's share comes from the data gradient
+        return _offsets(rows)
     rng = np.random.default_rng(12345)
     n_dof, n_con = sys0.n_dof, sys0.n_con
     x = Level(*(rng.standard_normal(k) + 1.0 for k in (n_dof, n_dof, n_dof, n_con)))
@@ -406,23 +417,21 @@ def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tu
                              for t in times))
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
-    n_x = ps.PO.size - 1
-    probed = np.arange(n_x) if skip is None else np.flatnonzero(~np.asarray(skip, bool))
-    columns = np.zeros((0, sys0.n))
-    if probed.size:
-        none = _data_gradient(sys0, ps, np.zeros(n_x, dtype=bool), 1)
-        a = _sweep_state(sys0, ps, 1, (np.zeros(n_x + 1, np.int64), np.zeros(0, np.int64)),
-                         (np.arange(probed.size + 1), probed, probed), none, 1,
-                         probe=probed.size)
-        sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
-        D = np.zeros(sys0.nnz) if refine is None else None
-        K, F = solved_step(like, x, x, D, D, 0)
-        kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0)
-        columns = a.probe
-    rows = [np.zeros(0, np.int64) for _ in range(n_x)]
+    none = _data_gradient(sys0, ps, np.zeros(n_x, dtype=bool), 1)
+    a = _sweep_state(sys0, ps, 1, (np.zeros(n_x + 1, np.int64), np.zeros(0, np.int64)),
+                     (np.arange(probed.size + 1), probed, probed), none, 1,
+                     probe=probed.size)
+    sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
+    D = np.zeros(sys0.nnz) if refine is None else None
+    K, F = solved_step(like, x, x, D, D, 0)
+    kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0)
     for j, i in enumerate(probed):
-        rows[i] = np.flatnonzero(columns[j] != 0.0)
-    RO = np.zeros(n_x + 1, dtype=np.int64)
+        rows[i] = np.flatnonzero(a.probe[j] != 0.0)
+    return _offsets(rows)
+
+
+def _offsets(rows: list) -> tuple:
+    """``(RO (n + 1,), RI)``: the index lists ``rows`` in one array with offsets."""
+    RO = np.zeros(len(rows) + 1, dtype=np.int64)
     RO[1:] = np.cumsum([r.size for r in rows])
-    RI = np.concatenate(rows + [np.zeros(0, np.int64)]).astype(np.int64)
-    return RO, RI
+    return RO, np.concatenate(rows + [np.zeros(0, np.int64)]).astype(np.int64)

@@ -34,7 +34,7 @@ from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint import adjoint_run
-from .beside import Beside, spare_core
+from .beside import spare_core
 from .designs import CS_STEP, changes, compile_perturbed, pseudo_data, relative_steps
 from .direct import direct_run
 from .histories import HISTORIES, to_store
@@ -242,7 +242,7 @@ class Adjoint(Strategy):
 
         overlap = spare_core() if self.overlap is None else self.overlap
         res0, values, gradients, timing, stats = adjoint_run(
-            setup.sys0, setup.settings, setup.responses, Beside(design, overlap),
+            setup.sys0, setup.settings, setup.responses, design, overlap=overlap,
             reuse=self.reuse, refine=self.refine, memory=self.memory,
             progress=setup.progress)
         return Run(res0, [], {}, timing, stats, values, gradients)
