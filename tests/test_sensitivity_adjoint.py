@@ -321,6 +321,25 @@ def test_a_failure_beside_the_primal_stops_the_run_at_a_chunk_boundary():
         frames
 
 
+@pytest.mark.parametrize("overlap", [True, False])
+def test_the_design_work_sees_the_callers_numpy_error_state(overlap):
+    """The perturbed designs are built under the caller's ``np.errstate`` in the worker
+    thread as in the caller's (a thread does not inherit NumPy's error state by itself)."""
+    from morphlab.sensitivity import Adjoint
+
+    build, p0, resp = adjoint_responses("pendulum")
+    seen = []
+
+    def traced(p):
+        if any(np.iscomplexobj(v) for v in p.values()):
+            seen.append(np.geterr()["divide"])
+        return build(p)
+
+    with np.errstate(divide="raise"):
+        ml.sensitivities(traced, p0, resp, method=Adjoint(overlap=overlap), **RUN)
+    assert seen == ["raise"] * len(p0)
+
+
 def test_overlap_is_a_boolean_or_none():
     from morphlab.sensitivity import Adjoint
 

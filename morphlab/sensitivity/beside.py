@@ -14,12 +14,14 @@ another thread; the primal reads the nominal system only).
 before, where it would compete with the run's own Python set-up for the interpreter), and a
 failure of the work (a variable ``build`` does not use, a design that changes the structure)
 is raised at the next chunk boundary, at most ``Settings.chunk_seconds`` of steps later, not at
-the end of the run. With one usable core, or ``overlap=False``, the work runs where the sweep
-asks for it, in the caller's thread.
+the end of the run. The work runs in a copy of the caller's context variables, NumPy's error
+state among them (``np.errstate``), as it would in the caller's thread. With one usable core,
+or ``overlap=False``, the work runs where the sweep asks for it, in the caller's thread.
 """
 
 from __future__ import annotations
 
+import contextvars
 import os
 import threading
 from collections.abc import Callable
@@ -61,6 +63,9 @@ class Beside:
 
     def __init__(self, fn: Callable[[], object], overlap: bool):
         self.fn, self.overlap = fn, overlap
+        # the caller's context variables (NumPy's error state among them), which a thread
+        # does not inherit: the work sees what it would see in the caller's thread
+        self.context = contextvars.copy_context()
         self.future: Future | None = None
         self._value = None
         self._done = False
@@ -73,7 +78,7 @@ class Beside:
     def start(self) -> None:
         """Hand the work to the worker thread (once; nothing without ``overlap``)."""
         if self.overlap and self.future is None and not self._done:
-            self.future = _pool().submit(self.fn)
+            self.future = _pool().submit(self.context.run, self.fn)
 
     def check(self) -> None:
         """Raise the work's error now if it has already failed (between chunks of steps)."""
