@@ -29,6 +29,19 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 _POOL: dict = {}
 _LOCK = threading.Lock()
+_IN_WORKER = threading.local()  # set while the worker thread runs a piece of work
+
+
+def _forget_pool() -> None:
+    """In a forked child: the parent's worker thread does not exist there, and work queued on
+    its executor would wait for ever; the child makes a pool of its own when it needs one."""
+    global _LOCK
+    _POOL.clear()
+    _LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # POSIX: process pools that fork (a sweep's workers)
+    os.register_at_fork(after_in_child=_forget_pool)
 
 
 def spare_core() -> bool:
@@ -76,9 +89,19 @@ class Beside:
         return self.future is not None
 
     def start(self) -> None:
-        """Hand the work to the worker thread (once; nothing without ``overlap``)."""
-        if self.overlap and self.future is None and not self._done:
-            self.future = _pool().submit(self.context.run, self.fn)
+        """Hand the work to the worker thread (once; nothing without ``overlap``, nor from
+        the worker thread itself: a gradient inside a piece of work, say a ``build`` that
+        runs one, would wait for its own thread)."""
+        if (self.overlap and self.future is None and not self._done
+                and not getattr(_IN_WORKER, "on", False)):
+            self.future = _pool().submit(self.context.run, self._run)
+
+    def _run(self):
+        _IN_WORKER.on = True
+        try:
+            return self.fn()
+        finally:
+            _IN_WORKER.on = False
 
     def check(self) -> None:
         """Raise the work's error now if it has already failed (between chunks of steps)."""
