@@ -79,3 +79,22 @@ def test_a_forked_child_makes_a_worker_of_its_own():
         p.terminate()
         pytest.fail("the forked child waited for the parent's worker thread")
     assert p.exitcode == 0 and queue.get(timeout=5) == p.pid
+
+
+@pytest.mark.parametrize(("cores", "others", "spare"),
+                         [(1, 0.0, False), (2, 0.0, True), (2, 1.0, False), (4, 2.0, True),
+                          (4, 3.0, False)])
+def test_a_spare_core_is_an_idle_one(monkeypatch, cores, others, spare):
+    """The worker thread is used where a core besides the caller's is idle: not on one core,
+    not beside another busy process (a sweep's second worker on two cores)."""
+    from morphlab.sensitivity import beside
+
+    monkeypatch.setattr(beside, "usable_cores", lambda: cores)
+    monkeypatch.setattr(beside, "others_running", lambda: others)
+    assert beside.spare_core() is spare
+
+
+def test_others_running_reads_a_count():
+    from morphlab.sensitivity.beside import others_running
+
+    assert 0.0 <= others_running() < 10_000

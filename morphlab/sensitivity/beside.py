@@ -5,8 +5,8 @@ The adjoint reads the variables' changes and the pseudo-load data
 pseudo_data`) when its backward sweep begins, after the primal run. Forming them is Python and
 NumPy work: the user's ``build`` once per variable, then each changed design's rows. The
 primal's compiled steps (:func:`~morphlab.kernels.steps.run_steps`) release the interpreter
-lock, so where the process may use a second core that work runs in a thread while the steps
-run. The gradient then takes the wall time of the primal and the sweep, not of their sum with
+lock, so where a second core is idle (:func:`spare_core`) that work runs in a thread while the
+steps run. The gradient then takes the wall time of the primal and the sweep, not of their sum with
 the set-up; the CPU time is the same, and so are the results, bit for bit (the same calls in
 another thread; the primal reads the nominal system only).
 
@@ -44,13 +44,35 @@ if hasattr(os, "register_at_fork"):  # POSIX: process pools that fork (a sweep's
     os.register_at_fork(after_in_child=_forget_pool)
 
 
-def spare_core() -> bool:
-    """May this process use more than one core (its CPU affinity, else the core count)?"""
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity, else the machine's count)."""
     try:
-        n = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - platforms without affinity (macOS, Windows)
-        n = os.cpu_count() or 1
-    return n >= 2
+        return os.cpu_count() or 1
+
+
+def others_running() -> float:
+    """How many threads of the machine run or wait to run besides the caller: Linux's
+    instantaneous count (``/proc/loadavg``'s fourth field, less the caller), else the
+    one-minute load average less one."""
+    try:
+        with open("/proc/loadavg") as f:
+            return float(f.read().split()[3].split("/")[0]) - 1.0
+    except (OSError, IndexError, ValueError):
+        try:
+            return max(0.0, os.getloadavg()[0] - 1.0)
+        except (AttributeError, OSError):  # pragma: no cover - no load average at all
+            return 0.0
+
+
+def spare_core() -> bool:
+    """Is a core free for the worker thread: at least two usable cores, and fewer other
+    threads running than the cores besides the caller's? The worker only pays where a core
+    is idle: beside another busy process (a sweep's second worker, a test worker) the two
+    threads slow each other, which costs CPU and gains no wall time."""
+    n = usable_cores()
+    return n >= 2 and others_running() < n - 1
 
 
 def _pool() -> ThreadPoolExecutor:

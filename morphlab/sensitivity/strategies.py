@@ -211,8 +211,9 @@ class Adjoint(Strategy):
     overlap : bool, optional
         Form the variables' changes and pseudo-load data in a thread while the primal's
         compiled steps run (:mod:`morphlab.sensitivity.beside`: the same results, the wall
-        time of the set-up hidden, its CPU time not); None (the default): where the process
-        may use a second core.
+        time of the set-up hidden at the price of some more CPU time, the two threads
+        slowing each other a little); None (the default): where a core is idle when the
+        gradient starts (:func:`~morphlab.sensitivity.beside.spare_core`).
     """
 
     reuse: bool = True
