@@ -62,7 +62,9 @@ def _level(st) -> Level:
 
 
 class AdjointHook(StepHook):
-    """Records the steps of the primal run for the sweep (module docstring)."""
+    """Records the steps of the primal run for the sweep (module docstring), and starts the
+    work ``beside`` the run after its first compiled chunk (:mod:`.beside`), raising its
+    error at a chunk boundary."""
 
     def __init__(self, system: System, n_steps: int, memory: int, reuse: bool,
                  beside: Beside | None = None):
