@@ -114,6 +114,15 @@ class Strategy(abc.ABC):
         return 1
 
 
+def design_data(setup: Setup, chs: list, pert: np.ndarray, T0) -> tuple:
+    """What the direct and adjoint methods read of the variables' changes ``chs`` (their
+    perturbations ``pert``, ``T0`` the nominal time values): ``(ps, dq0, dv0)``, the
+    pseudo-load data and the derivatives of the initial state (n_dof, n_x) each."""
+    ps = pseudo_data(setup.sys0, chs, pert, T0)
+    return (ps, np.stack([ch.dq0 for ch in chs], axis=1),
+            np.stack([ch.dv0 for ch in chs], axis=1))
+
+
 def _timed_runs(setup: Setup, systems_per_variable) -> Run:
     """The primal run and whole runs of perturbed systems (complex step, differences)."""
     t0 = _time.perf_counter()
@@ -186,9 +195,7 @@ class Direct(Strategy):
             steps = relative_steps(setup.p0, setup.names, self.step)
             chs = changes(setup.build, setup.p0, setup.names, setup.sys0, setup.times, steps)
             pert = np.array([steps[v] for v in setup.names])
-        ps = pseudo_data(setup.sys0, chs, pert, T0)
-        dq0 = np.stack([ch.dq0 for ch in chs], axis=1)
-        dv0 = np.stack([ch.dv0 for ch in chs], axis=1)
+        ps, dq0, dv0 = design_data(setup, chs, pert, T0)
         kept = to_store(setup.store, setup.responses, setup.sys0, setup.settings)
         return Run(*direct_run(setup.sys0, setup.settings, setup.complex_systems, ps, dq0, dv0,
                                kept, reuse=self.reuse, refine=self.refine,
@@ -236,10 +243,7 @@ class Adjoint(Strategy):
         def design():  # what the sweep reads of the variables (module beside)
             cs = setup.complex_changes
             T0 = time_table(setup.sys0, setup.times)
-            ps = pseudo_data(setup.sys0, cs, np.full(len(setup.names), 1j * CS_STEP), T0)
-            dq0 = np.stack([ch.dq0 for ch in cs], axis=1)
-            dv0 = np.stack([ch.dv0 for ch in cs], axis=1)
-            return ps, dq0, dv0, cs
+            return (*design_data(setup, cs, np.full(len(setup.names), 1j * CS_STEP), T0), cs)
 
         overlap = spare_core() if self.overlap is None else self.overlap
         res0, values, gradients, timing, stats = adjoint_run(
