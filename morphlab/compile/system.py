@@ -272,6 +272,19 @@ def _profile_table(prof, times: np.ndarray, owner: str) -> tuple:
 
 
 
+def real_parts(tree):
+    """``tree`` (an array, or tuples and named tuples of them; None and other leaves kept)
+    with every complex array replaced by a C-ordered copy of its real part: a complex system's
+    kernel arrays or time values as the real system's of the same types (a complex run's real
+    step matrix, :class:`~morphlab.solve.newton.NewtonSolver`)."""
+    if isinstance(tree, np.ndarray):
+        return np.ascontiguousarray(tree.real) if tree.dtype.kind == "c" else tree
+    if isinstance(tree, tuple):
+        parts = [real_parts(t) for t in tree]
+        return type(tree)(*parts) if hasattr(tree, "_fields") else tuple(parts)
+    return tree
+
+
 def time_table(system: System, times: np.ndarray, dtype=None, cache: dict | None = None
                ) -> Times:
     """Time values at every time of ``times`` (:data:`~morphlab.kernels.system.Times`, each

@@ -76,9 +76,14 @@ class Factor:
 
 
 def _columns(b, dtype):
-    """``b`` as a C-ordered (n, m) copy in ``dtype`` and the shape to return."""
+    """``(x, shape, xk)``: ``b`` as a C-ordered (n, m) copy ``x`` in the result type of
+    ``b`` and the factor's ``dtype``, the shape to return, and what the factor's kernels solve
+    in place: ``x`` itself, or for a complex ``b`` and a real factor the real view of ``x``
+    (n, 2m), whose columns alternate real and imaginary parts. A real matrix solves the two
+    parts apart, so the real kernels serve and no kernel of mixed types is compiled."""
     dt = np.result_type(dtype, b.dtype)
-    return np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1), b.shape
+    x = np.array(b, dtype=dt, order="C").reshape(b.shape[0], -1)
+    return x, b.shape, (x if dt == dtype else x.view(dtype))
 
 
 class _DenseLU(Factor):
@@ -96,13 +101,13 @@ class _DenseLU(Factor):
         return self.LU.nbytes + self.piv.nbytes
 
     def solve(self, b):
-        x, shape = _columns(b, self.LU.dtype)
-        lu_solve(self.LU, self.piv, x)
+        x, shape, xk = _columns(b, self.LU.dtype)
+        lu_solve(self.LU, self.piv, xk)
         return x.reshape(shape)
 
     def solve_transposed(self, b):
-        x, shape = _columns(b, self.LU.dtype)
-        lu_solve_transposed(self.LU, self.piv, x)
+        x, shape, xk = _columns(b, self.LU.dtype)
+        lu_solve_transposed(self.LU, self.piv, xk)
         return x.reshape(shape)
 
     def arrays(self) -> Factors:
@@ -182,11 +187,11 @@ class _SparseLU(Factor):
         return self.Lx.nbytes + self.Ux.nbytes + self.Ud.nbytes
 
     def _apply(self, kernel, b):
-        x2, shape = _columns(b, self.Lx.dtype)
-        x = np.empty_like(x2)
+        _, shape, bk = _columns(b, self.Lx.dtype)
+        x = np.empty(bk.shape, self.Lx.dtype)
         Lp, Li, Up, Ui, *maps = self.order.solve_arrays
-        kernel(Lp, Li, self.Lx, Up, Ui, self.Ux, self.Ud, *maps, x2, x, np.empty_like(x))
-        return x.reshape(shape)
+        kernel(Lp, Li, self.Lx, Up, Ui, self.Ux, self.Ud, *maps, bk, x, np.empty_like(x))
+        return x.view(np.result_type(self.Lx.dtype, b.dtype)).reshape(shape)
 
     def solve(self, b):
         return self._apply(sparse_solve, b)

@@ -46,7 +46,9 @@ class StepProblem:
     kernel arrays, the time values and the parts evaluated (all); ``s``: the step's
     :class:`~morphlab.kernels.assemble.Step` (predictors, old-level share, coefficients, time
     index); ``linear``: the initial solve (one iteration is exact); ``t``, ``step``: where, for
-    messages.
+    messages; ``real``: a complex system's ``(M, T)`` with the real parts of their values
+    (:func:`~morphlab.compile.system.real_parts`), for its real step matrix (None: a real
+    system).
     """
 
     system: System
@@ -57,6 +59,7 @@ class StepProblem:
     linear: bool
     t: float
     step: int
+    real: tuple | None = None
 
     @property
     def names(self) -> list[str]:
@@ -86,8 +89,14 @@ class StepProblem:
 
     def fill(self, z, data, W) -> None:
         """The step matrix at ``z`` into the CSC values ``data`` (m, nnz): row 0 the Newton
-        matrix (and ``Dq``, ``Dv`` in rows 1, 2 when the step's coefficients ask)."""
-        matrix(self.M, self.level(z), self.s.w, self.T, self.s.t, self.s.k, self.s.C, data, W)
+        matrix (and ``Dq``, ``Dv`` in rows 1, 2 when the step's coefficients ask); ``W``: the
+        bodies' scratch in ``data``'s dtype. A real ``data`` and a complex ``z``: the real step
+        matrix (:class:`NewtonSolver`), that of the real parts."""
+        M, x, T = self.M, self.level(z), self.T
+        if data.dtype.kind == "f" and z.dtype.kind == "c":
+            M, T = self.real
+            x = Level(*(np.ascontiguousarray(a.real) for a in x))
+        matrix(M, x, self.s.w, T, self.s.t, self.s.k, self.s.C, data, W)
 
 
 class NewtonSolver:
@@ -107,17 +116,29 @@ class NewtonSolver:
         Let the run solve its steps in compiled chunks once the factorization has settled
         (:mod:`morphlab.solve.timeloop`).
     polish : int
-        Extra iterations after convergence (complex-step reference runs: the imaginary part
-        converges one iteration behind the real part).
+        Extra iterations after convergence (the imaginary part of a complex run converges one
+        iteration behind its real part).
     rows : int
         Rows of the fill (1: the Newton matrix; 3: with ``Dq`` and ``Dv``, a sensitivity run).
+
+    A complex run that polishes (the whole-run complex step) factors the real step matrix:
+    the matrix of the real parts of the data and the iterate, which is the primal's matrix at
+    that iterate. The real part then follows Newton's method exactly, and each iteration
+    solves the imaginary part's linear equation (the derivative's) with the exact matrix at
+    the previous iterate, so the polish iteration leaves it as accurate as the real part
+    (``docs/theory.md`` §6.7). Such a run compiles no complex matrix kernels and factors in
+    real arithmetic. Without polish the imaginary part would keep the error of the iterate
+    before the last, so a complex run that does not polish factors the complex matrix.
 
     Attributes
     ----------
     n_factorizations : int
         Factorizations so far.
     data : (rows, nnz)
-        The last fill.
+        The last fill (real in a complex run that polishes).
+    W, W_fill :
+        The bodies' scratch of the residual (in ``dtype``) and of the fill (in ``data``'s
+        dtype; the same object in a real run).
     """
 
     def __init__(self, system: System, dtype, *, tol: float, max_iter: int, dense_max: int,
@@ -129,10 +150,13 @@ class NewtonSolver:
         self.compiled = compiled
         self.polish = polish
         self.n_dof = system.n_dof
+        fill_dtype = np.dtype(float) if self.dtype.kind == "c" and polish > 0 else self.dtype
         self.factorization = StepFactorization(system.indices, system.indptr, system.n,
-                                               self.dtype, dense_max)
-        self.data = np.zeros((rows, system.nnz), dtype=self.dtype)
+                                               fill_dtype, dense_max)
+        self.data = np.zeros((rows, system.nnz), dtype=fill_dtype)
         self.W = scratch(system.count("flex"), np.zeros(1, dtype=self.dtype))
+        self.W_fill = (self.W if fill_dtype == self.dtype
+                       else scratch(system.count("flex"), np.zeros(1)))
         self.csc = Csc(system.indices, system.indptr)
         self.n_factorizations = 0
         self.kept: Factor | None = None  # the factorization modified Newton keeps
@@ -152,7 +176,7 @@ class NewtonSolver:
 
     def factor(self, p: StepProblem, z) -> Factor:
         """Fill and factor the exact step matrix at ``z``."""
-        p.fill(z, self.data, self.W)
+        p.fill(z, self.data, self.W_fill)
         try:
             lu = self.factorization(self.data[0])
         except SingularFactor as exc:

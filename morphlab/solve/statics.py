@@ -155,7 +155,8 @@ def _unsupported(stp: Stepper, q, lam, k: int, t: float) -> str:
         return ""
     zero_v = np.zeros(n_dof, dtype=system.dtype)
     p = stp.problem(q, zero_v, stp.step_coef, None, stp.T, k, t, k)
-    p.fill(np.concatenate([zero_v, lam / stp.scale]), stp.newton.data, stp.newton.W)
+    p.fill(np.concatenate([zero_v, lam / stp.scale]), stp.newton.data,
+           stp.newton.W_fill)
     A = np.real(csc_matrix(stp.newton.data[0], system.indices, system.indptr, n).toarray())
     for axis in (1, 0):  # rows, then columns, to a largest entry of 1
         m = np.max(np.abs(A), axis=axis, keepdims=True)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..compile.system import System, time_table
+from ..compile.system import System, real_parts, time_table
 from ..errors import ConvergenceError, NonFiniteError
 from ..kernels import newmark
 from ..kernels.assemble import Step, residual
@@ -80,6 +80,9 @@ class Stepper:
                  scheme: str = "arnold-bruls"):
         self.system = system
         self.M = system.arrays
+        # a complex system's real parts, for its real step matrices (NewtonSolver)
+        self.M_real = real_parts(self.M) if system.dtype.kind == "c" else None
+        self._T_real = (None, None)  # the last time table and its real parts
         self.P = system.parts()
         self.T = T
         self.dtype = system.dtype
@@ -139,7 +142,7 @@ class Stepper:
         """The median magnitude of the diagonal of the equation block of the step matrix at
         ``(q, v)`` with ``a = 0`` (real part)."""
         p = self.problem(q, v, coef, None, self.T, 0, 0.0, 0, scale=1.0)
-        p.fill(np.zeros(self.n, dtype=self.dtype), self.newton.data, self.newton.W)
+        p.fill(np.zeros(self.n, dtype=self.dtype), self.newton.data, self.newton.W_fill)
         A = csc_matrix(self.newton.data[0], self.system.indices, self.system.indptr, self.n)
         d = np.abs(np.real(A.diagonal()[: self.n_dof]))
         d = d[d > 0]
@@ -156,7 +159,14 @@ class Stepper:
         s = Step(qh, vh, R_hist, float(coef.bh2), float(coef.gh),
                  weights(coef.new, scale, self.b0, self.b1), C[:self.newton.data.shape[0]],
                  0, k)
-        return StepProblem(self.system, self.M, T, self.P, s, coef.h == 0.0, t, step)
+        return StepProblem(self.system, self.M, T, self.P, s, coef.h == 0.0, t, step,
+                           None if self.M_real is None else (self.M_real, self._real_times(T)))
+
+    def _real_times(self, T: Times) -> Times:
+        """The real parts of the time values ``T`` (kept for the last table asked for)."""
+        if self._T_real[0] is not T:
+            self._T_real = (T, real_parts(T))
+        return self._T_real[1]
 
     def history(self, st: State, coef: StepCoefficients, T: Times, k: int):
         """The old-level share ``E(s_n; old weights)`` of the residual (constant in a step;
