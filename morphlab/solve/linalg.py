@@ -187,11 +187,11 @@ class _SparseLU(Factor):
         return self.Lx.nbytes + self.Ux.nbytes + self.Ud.nbytes
 
     def _apply(self, kernel, b):
-        _, shape, bk = _columns(b, self.Lx.dtype)
-        x = np.empty(bk.shape, self.Lx.dtype)
+        b2, shape, bk = _columns(b, self.Lx.dtype)
+        x = np.empty_like(bk)
         Lp, Li, Up, Ui, *maps = self.order.solve_arrays
         kernel(Lp, Li, self.Lx, Up, Ui, self.Ux, self.Ud, *maps, bk, x, np.empty_like(x))
-        return x.view(np.result_type(self.Lx.dtype, b.dtype)).reshape(shape)
+        return x.view(b2.dtype).reshape(shape)
 
     def solve(self, b):
         return self._apply(sparse_solve, b)

@@ -80,8 +80,9 @@ class Stepper:
                  scheme: str = "arnold-bruls"):
         self.system = system
         self.M = system.arrays
-        # a complex system's real parts, for its real step matrices (NewtonSolver)
-        self.M_real = real_parts(self.M) if system.dtype.kind == "c" else None
+        # the real parts of a complex system whose solver fills real step matrices (one that
+        # polishes: NewtonSolver), else None
+        self.M_real = real_parts(self.M) if newton.data.dtype != system.dtype else None
         self._T_real = (None, None)  # the last time table and its real parts
         self.P = system.parts()
         self.T = T
