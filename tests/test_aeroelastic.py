@@ -34,10 +34,14 @@ def test_suction_on_the_upper_nose_pulls_the_skin_outwards(thermalling):
     assert 10 < k < 20 and np.all(suction[:k]) and not np.any(suction[k:])
     assert r.nodes_vacuum[k - 1, 0] < 5.0  # the suction side reaches round the nose
     # the structure's side: every sucked node moves out along the outward normal and every
-    # pushed node in (F is clamped); a flipped sign anywhere between the flow and
-    # add_pressure reverses all of it (measured: +0.0002 ... +0.078 mm, -0.083 ... -1e-4 mm)
+    # pushed node in; a flipped sign anywhere between the flow and add_pressure reverses all
+    # of it (measured: +0.0005 ... +0.078 mm, -0.082 ... -6e-5 mm). F is clamped, and node 1
+    # next to it moves by less than a thousandth of the largest deflection, its sign set by
+    # how the mechanism yields rather than by the local load (measured -1.2e-5 mm here, and
+    # +1.6e-4 mm with the mechanism rounded 0.01-0.09 mm differently).
     dn = r.deflection_normal
-    assert np.all(dn[1:k] > 0.0) and np.all(dn[k:] < 0.0)
+    assert abs(dn[1]) < 1e-3 * np.max(np.abs(dn))
+    assert np.all(dn[2:k] > 0.0) and np.all(dn[k:] < 0.0)
     # and the load does positive work on its own deflection, W = -int p n_out . u b ds: for a
     # stable structure under a (nearly dead) load W = u K u > 0; with either sign flipped it is
     # negative
@@ -82,7 +86,7 @@ def test_the_fixed_point_is_the_equilibrium_under_its_own_pressure(thermalling):
     # statics converge to 1e-10 of the model size (~3e-8 mm); the last pass moved < tol
     assert np.max(np.abs(x - r.nodes_loaded)) < 10 * ae.TOL_MM
     # the deflection is the issue's question: several times the vacuum shape error
-    # (0.020 mm RMS): measured 0.085 mm max, 0.058 mm RMS
+    # (0.021 mm RMS): measured 0.085 mm max, 0.057 mm RMS
     assert r.deflection_rms > 2.0 * mo.rms_error(r.vacuum)
 
 
@@ -108,7 +112,7 @@ def test_deflection_converges_under_mesh_refinement():
     elements lie within 7 % of the extrapolated value."""
     d = [fl.configuration("thermalling", n_elements=n).deflection_max for n in (30, 60, 120)]
     order = np.log2((d[1] - d[0]) / (d[2] - d[1]))
-    # measured 0.0853, 0.0888, 0.0899 mm: order 1.7
+    # measured 0.0849, 0.0882, 0.0892 mm: order 1.7
     assert 1.0 < order < 3.0
     limit = d[2] + (d[2] - d[1]) / (2**order - 1)
     assert abs(d[0] - limit) < 0.07 * limit

@@ -1,10 +1,10 @@
-"""Complex runs that polish factor the real step matrix (docs/theory.md §6.7).
+"""Complex runs factor the real step matrix (docs/theory.md §6.7).
 
-A complex run that takes an iteration beyond convergence (the whole-run complex step)
-evaluates its residual in complex arithmetic and iterates with the primal's matrix at the real
-part of the iterate. Its factor solves a complex right-hand side as real columns, through the
-real kernels. The derivative is then exact once the run has taken its iteration beyond
-convergence, which the tests here check against the exact direct method.
+A complex run (the whole-run complex step, a complex-step statics) takes an iteration beyond
+convergence, evaluates its residual in complex arithmetic and iterates with the primal's matrix
+at the real part of the iterate. Its factor solves a complex right-hand side as real columns,
+through the real kernels. The derivative is then exact, which the tests here check against the
+exact direct method and against central differences of the statics.
 """
 
 import numpy as np
@@ -123,27 +123,24 @@ def test_a_complex_run_fills_and_factors_real_matrices(monkeypatch):
             assert abs(cs.gradients[r][v] - ref.gradients[r][v]) <= 1e-8 * scale, (r, v)
 
 
-def test_only_a_complex_run_that_polishes_fills_real_matrices():
+def test_every_complex_run_polishes_and_fills_real_matrices():
     """The real matrix rests on the iteration beyond convergence (module docstring): a complex
-    solver that polishes fills real matrices with a real scratch of its own; one that does not
-    (a complex-step statics), and every real one, fill in their own dtype."""
+    solver takes at least one (a complex-step statics asks for none) and fills real matrices
+    with a real scratch of its own; a real solver fills in its own dtype and polishes only as
+    asked."""
     build, p0, _ = responses_for("pendulum")
     real = compile_model(build(p0))
     cplx = compile_model(build({k: v + 1e-30j for k, v in p0.items()}))
     kw = dict(tol=1e-10, max_iter=10, dense_max=100)
-    polished = newton.NewtonSolver(cplx, cplx.dtype, polish=1, **kw)
-    assert polished.data.dtype == np.float64 and polished.W_fill is not polished.W
-    plain = newton.NewtonSolver(cplx, cplx.dtype, polish=0, **kw)
-    assert plain.data.dtype == np.complex128 and plain.W_fill is plain.W
-    for polish in (0, 1):
+    for polish in (0, 1, 2):
+        solver = newton.NewtonSolver(cplx, cplx.dtype, polish=polish, **kw)
+        assert solver.polish == max(polish, 1)
+        assert solver.data.dtype == np.float64 and solver.W_fill is not solver.W
         solver = newton.NewtonSolver(real, real.dtype, polish=polish, **kw)
+        assert solver.polish == polish
         assert solver.data.dtype == np.float64 and solver.W_fill is solver.W
 
 
-@pytest.mark.xfail(strict=True, reason="a complex statics run does not polish: started at an "
-                   "equilibrium with its multipliers at zero it converges in one iteration, its "
-                   "derivative solved with the matrix at lam = 0 (docs/theory.md 6.7); polishing "
-                   "it moves the morphing study's rounded design")
 def test_complex_step_statics_from_an_equilibrium_gives_the_derivative():
     """The morphing fit's Jacobian at its first Gauss–Newton iteration (the skin under the
     linear fit's forces, complex-step statics from that equilibrium, as

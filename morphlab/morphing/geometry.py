@@ -53,16 +53,16 @@ DEFAULTS: dict[str, float] = {
     "t_w": 2.0,
     "M_t": 1.0e4,
     "x_A": 104.5,
-    "y_A": -4.0,
+    "y_A": -4.01,
     "E": E_AL,
 }
 #: Further geometry that ``build`` accepts in ``p`` (not in the paper's study): the bell-crank
 #: points B and D [mm].
 GEOMETRY: dict[str, float] = {
     "x_B": 102.59,
-    "y_B": -12.72,
-    "x_D": 132.02,
-    "y_D": -8.87,
+    "y_B": -12.76,
+    "x_D": 132.11,
+    "y_D": -8.89,
 }
 
 

@@ -116,26 +116,25 @@ class NewtonSolver:
         Let the run solve its steps in compiled chunks once the factorization has settled
         (:mod:`morphlab.solve.timeloop`).
     polish : int
-        Extra iterations after convergence (the imaginary part of a complex run converges one
-        iteration behind its real part).
+        Extra iterations after convergence. A complex run takes at least one: its imaginary
+        part converges one iteration behind its real part.
     rows : int
         Rows of the fill (1: the Newton matrix; 3: with ``Dq`` and ``Dv``, a sensitivity run).
 
-    A complex run that polishes (the whole-run complex step) factors the real step matrix:
-    the matrix of the real parts of the data and the iterate, which is the primal's matrix at
-    that iterate. The real part then follows Newton's method exactly, and each iteration
-    solves the imaginary part's linear equation (the derivative's) with the exact matrix at
-    the previous iterate, so the polish iteration leaves it as accurate as the real part
-    (``docs/theory.md`` §6.7). Such a run compiles no complex matrix kernels and factors in
-    real arithmetic. Without polish the imaginary part would keep the error of the iterate
-    before the last, so a complex run that does not polish factors the complex matrix.
+    A complex run (a complex step through the run or the statics) factors the real step
+    matrix: the matrix of the real parts of the data and the iterate, which is the primal's
+    matrix at that iterate. The real part then follows Newton's method exactly, and each
+    iteration solves the imaginary part's linear equation (the derivative's) with the exact
+    matrix at the previous iterate, so the polish iteration leaves it as accurate as the real
+    part (``docs/theory.md`` §6.7). A complex run compiles no complex matrix kernels and
+    factors in real arithmetic.
 
     Attributes
     ----------
     n_factorizations : int
         Factorizations so far.
     data : (rows, nnz)
-        The last fill (real in a complex run that polishes).
+        The last fill (real in a complex run).
     W, W_fill :
         The bodies' scratch of the residual (in ``dtype``) and of the fill (in ``data``'s
         dtype; the same object in a real run).
@@ -148,9 +147,10 @@ class NewtonSolver:
         self.tol = tol
         self.max_iter = max_iter
         self.compiled = compiled
-        self.polish = polish
+        complex_run = self.dtype.kind == "c"
+        self.polish = max(polish, 1) if complex_run else polish
         self.n_dof = system.n_dof
-        fill_dtype = np.dtype(float) if self.dtype.kind == "c" and polish > 0 else self.dtype
+        fill_dtype = np.dtype(float) if complex_run else self.dtype
         self.factorization = StepFactorization(system.indices, system.indptr, system.n,
                                                fill_dtype, dense_max)
         self.data = np.zeros((rows, system.nnz), dtype=fill_dtype)
