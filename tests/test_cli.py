@@ -26,6 +26,13 @@ def test_morphing_writes_tables_figures_and_json(tmp_path, capsys):
     assert data["rms_error_mm"] < 1.0 and data["ks_max_stress_MPa"] < 240.0
     for fig in ("fig5b_motion", "fig6_stress", "fig7_profiles", "fig9_error_sens"):
         assert (out / f"{fig}.png").stat().st_size > 1000
+    # the closing note quotes this run's figures (the quick run's differ from the study's)
+    note = " ".join(printed[printed.index("Why our numbers"):].split())
+    signs = data["formulations"]["study"]["table1_signs_as_paper"]
+    assert f"Table 1 signs as the paper's: {signs} of 10." in note
+    m_err = data["design"]["M_t"] * data["sensitivities"]["rms_error_mm"]["M_t"]
+    assert f"(M_t de_rms/dM_t = {m_err:+.2f} mm)" in note
+    assert f"(RMS {data['rms_error_mm']:.3f} vs 0.63 mm)" in note
 
 
 @pytest.mark.parametrize("args, word", [

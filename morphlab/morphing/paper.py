@@ -13,6 +13,7 @@ import os
 import pathlib
 import statistics
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,7 +49,7 @@ def _fmt(x: float) -> str:
 def run_study(build, p0: dict, responses: dict, settings: Settings, *, body: str, target,
               undeformed, paper: dict, units: dict, out=None, figures: bool = True,
               timing: bool = True, repeats: int = 3, fd_step: float = 1e-6,
-              progress: bool = False, notes: str = "",
+              progress: bool = False, notes: str | Callable[[dict], str] = "",
               compare: dict | None = None) -> StudyResult:
     """Run the study and (with ``out``) write figures and ``out/morphing.json``.
 
@@ -74,6 +75,9 @@ def run_study(build, p0: dict, responses: dict, settings: Settings, *, body: str
         Repetitions of each timed run (the median is reported).
     fd_step : float
         Relative step of the finite differences.
+    notes : str or callable
+        Text that ends the report, or a function of the study's summary (the dict written to
+        ``morphing.json``) that writes it, so that the figures it quotes are this run's.
     compare : dict[str, callable], optional
         Other formulations of the same model, ``{label: build}``: their responses, Table 1
         and kinematic accuracy are reported beside the study's (``summary["formulations"]``),
@@ -94,7 +98,7 @@ def run_study(build, p0: dict, responses: dict, settings: Settings, *, body: str
     summary = _summary(sens, body, e_k, stress, timing_s, p0, settings, paper)
     summary["formulations"] = _formulations(sens, compare or {}, p0, responses, settings,
                                             body, paper)
-    report = _report(summary, names, units, paper, notes)
+    report = _report(summary, names, units, paper, notes(summary) if callable(notes) else notes)
     study = StudyResult(summary=summary, sensitivity=sens, node_errors=e_k,
                         node_error_gradients=de_k, stress_gradients=dsig, report=report)
     if out is not None:
@@ -188,7 +192,7 @@ def _summary(sens, body: str, e_k, stress, timing_s: dict, p0: dict, settings: S
     return summary
 
 
-def _signs_matched(table1: dict, paper: dict) -> int:
+def signs_matched(table1: dict, paper: dict) -> int:
     """How many Table 1 entries have the paper's sign."""
     ref = paper.get("table1", {})
     return sum(int(np.sign(table1[k][v]) == np.sign(ref[k][v]))
@@ -202,7 +206,7 @@ def _formulation(sens, body: str, paper: dict, final_ref=None) -> dict:
     table1 = {"ks_max_stress_MPa": dict(sens.gradients["ks_max_stress"]),
               "rms_error_mm": dict(sens.gradients["rms_error"])}
     out = {"values": dict(sens.values), "table1": table1,
-           "table1_signs_as_paper": _signs_matched(table1, paper),
+           "table1_signs_as_paper": signs_matched(table1, paper),
            "frames": kin.frames if kin is not None else None,
            "kinematic_error_estimate_mm": kin.estimate if kin is not None else None,
            "status": res.status}
