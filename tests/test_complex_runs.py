@@ -141,12 +141,13 @@ def test_every_complex_run_polishes_and_fills_real_matrices():
         assert solver.data.dtype == np.float64 and solver.W_fill is solver.W
 
 
-def test_complex_step_statics_from_an_equilibrium_gives_the_derivative():
+def test_complex_step_statics_from_an_equilibrium_gives_the_derivative(monkeypatch):
     """The morphing fit's Jacobian at its first Gauss–Newton iteration (the skin under the
     linear fit's forces, complex-step statics from that equilibrium, as
     ``morphing.design._fit_nonlinear`` takes it) against central differences of the statics
     (steps 0.01 N on forces of 1-2 kN, statics to 1e-13: truncation and noise far below the
-    1e-6 asserted; an exact Jacobian agrees to 6e-10)."""
+    1e-6 asserted; an exact Jacobian agrees to 6e-10). The complex statics fill real
+    matrices only, as every complex run does."""
     from morphlab.morphing import design as md
     from morphlab.morphing import leading_edge as mo
 
@@ -158,11 +159,20 @@ def test_complex_step_statics_from_an_equilibrium_gives_the_derivative():
         return md._loaded_skin(g, mo.C_NODE, mo.E_NODE, 2.0, mo.E_AL, "accurate")
 
     q = ml.static(skin(f), t=1.0, steps=5, kinematic_tol=kin).q[-1]
+    fills = []
+    matrix = newton.matrix
+
+    def spy_matrix(M, x, w, T, t, k, C, data, W):
+        fills.append((data.dtype, x.q.dtype))
+        return matrix(M, x, w, T, t, k, C, data, W)
+
     cs, fd = np.zeros((62, 4)), np.zeros((62, 4))
     for j in range(4):
         fj = f.astype(complex)
         fj[j] += 1e-20j
+        monkeypatch.setattr(newton, "matrix", spy_matrix)
         r = ml.static(skin(fj), t=1.0, q_start=q.astype(complex), kinematic_tol=kin)
+        monkeypatch.undo()
         cs[:, j] = np.imag(r.node_positions("skin", -1)).ravel() / 1e-20
         d = np.zeros(4)
         d[j] = 1e-2
@@ -170,3 +180,4 @@ def test_complex_step_statics_from_an_equilibrium_gives_the_derivative():
                                  tol=1e-13).node_positions("skin", -1) for s in (1.0, -1.0))
         fd[:, j] = (plus - minus).ravel() / 2e-2
     assert np.max(np.abs(cs - fd)) <= 1e-6 * np.max(np.abs(fd))
+    assert fills and all(d == np.float64 for f in fills for d in f), set(fills)
