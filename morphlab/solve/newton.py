@@ -48,7 +48,7 @@ class StepProblem:
     index); ``linear``: the initial solve (one iteration is exact); ``t``, ``step``: where, for
     messages; ``real``: a complex system's ``(M, T)`` with the real parts of their values
     (:func:`~morphlab.compile.system.real_parts`), for its real step matrix (None: a real
-    system, or a complex one whose solver fills complex matrices).
+    system).
     """
 
     system: System
