@@ -75,6 +75,11 @@ def static(model: Model | System, *, settings: StaticSettings | None = None, q_s
     the coefficients :data:`morphlab.solve.stepper.STATIC`: inertia weight 0, the constraint
     rows at position level (``b0 = 1``, ``b1 = 0``, ``F_c = -Phi``) and ``a`` standing for the
     displacement from the previous equilibrium (``beta h² = 1``).
+
+    A model with complex data (a complex step ``p + i h`` of a design variable) is solved with
+    the real step matrix and one Newton iteration beyond convergence, so the imaginary part of
+    the equilibrium is ``h`` times its exact derivative, also from a ``q_start`` that is
+    already an equilibrium (``docs/theory.md`` §6.7).
     """
     st = StaticSettings.of(settings, **options)
     with CompileProgress("statics"):  # a notice and progress while kernels compile
