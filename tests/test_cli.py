@@ -47,3 +47,32 @@ def test_bad_input_exits_with_one_line(tmp_path, args, word):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and word in lines[0] and "Traceback" not in proc.stderr
+
+
+def test_study_note_reads_its_figures_from_the_summary():
+    """The closing note's conditional readings follow the numbers it is given (a summary made
+    up here: the note computes nothing else)."""
+    from morphlab.morphing import leading_edge as le
+
+    paper = le.PAPER["table1"]
+    ks = {v: -g for v, g in paper["ks_max_stress_MPa"].items()}  # every stress sign flipped
+    err = dict(paper["rms_error_mm"])
+    summary = {"design": dict(le.DEFAULTS), "ks_max_stress_MPa": 80.0, "rms_error_mm": 0.02,
+               "sensitivities": {"ks_max_stress_MPa": ks, "rms_error_mm": err}}
+
+    def note(**change):
+        for key, (var, value) in change.items():
+            summary["sensitivities"][key][var] = value
+        return " ".join(le.why_different(summary).split())
+
+    text = note(ks_max_stress_MPa=("M_t", 0.007), rms_error_mm=("M_t", 1e-5))
+    # the five error signs and the torque's stress sign (set back to the paper's above)
+    assert "Table 1 signs as the paper's: 6 of 10." in text
+    assert "Unlike the paper's" in text and "(M_t dsigma/dM_t = 70 <= 80 MPa" in text
+    assert "past it" in text and "(M_t de_rms/dM_t = +0.10 mm)" in text
+    assert "The stress signs for x_A and y_A differ" in text
+    assert "single-frame skin" not in text  # no comparison in this summary
+    text = note(ks_max_stress_MPa=("M_t", 0.02), rms_error_mm=("M_t", -1e-5))
+    assert "Like the paper's" in text and "short of it" in text
+    ks["x_A"] = paper["ks_max_stress_MPa"]["x_A"]
+    assert "The stress signs for y_A differ" in note()

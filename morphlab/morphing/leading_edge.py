@@ -262,13 +262,17 @@ def why_different(summary: dict) -> str:
         "de_rms/dM_t vanishes (the fit is stationary in the forces), and rounding the mechanism "
         "to 0.01 mm leaves the morphed skin beside the sharp minimum of e_rms in M_t, here "
         f"{side} (M_t de_rms/dM_t = {m_err:+.2f} mm).",
-        "The stress signs for x_A and y_A differ: with B and D fixed, moving A changes the "
-        "moment arm of the net link force (about 2.8 kN, pointing aft and up) about the pivot, "
-        "and with a counter-clockwise crank that raises the forces for +x_A and lowers them for "
-        "+y_A; the paper's signs would need a net force pointing forward or a clockwise crank "
-        f"(none passed the design checks here). Our short crank arm (|AB| = {arm:.1f} mm) makes "
-        "both far larger than the paper's.",
     ]
+    pivot = [v for v in ("x_A", "y_A") if np.sign(g["ks_max_stress_MPa"][v])
+             != np.sign(PAPER["table1"]["ks_max_stress_MPa"][v])]
+    if pivot:
+        parts.append(
+            f"The stress signs for {' and '.join(pivot)} differ: with B and D fixed, moving A "
+            "changes the moment arm of the net link force (pointing aft and up, 2.8 kN at the "
+            "defaults) about the pivot, and with a counter-clockwise crank that raises the "
+            "forces for +x_A and lowers them for +y_A; the paper's signs would need a net force "
+            "pointing forward or a clockwise crank (none passed the design checks here). Our "
+            f"short crank arm (|AB| = {arm:.1f} mm) makes both far larger than the paper's.")
     if offset is not None:
         parts.append(f"The paper's single-frame skin, with this mechanism, errs by {offset:.2f} "
                      "mm against the accurate skin.")
