@@ -90,10 +90,10 @@ class StepProblem:
     def fill(self, z, data, W) -> None:
         """The step matrix at ``z`` into the CSC values ``data`` (m, nnz): row 0 the Newton
         matrix (and ``Dq``, ``Dv`` in rows 1, 2 when the step's coefficients ask); ``W``: the
-        bodies' scratch in ``data``'s dtype. A real ``data`` and a complex ``z``: the real step
-        matrix (:class:`NewtonSolver`), that of the real parts."""
+        bodies' scratch in ``data``'s dtype. A complex system's: the real step matrix
+        (:class:`NewtonSolver`), that of the real parts of the data and of ``z``."""
         M, x, T = self.M, self.level(z), self.T
-        if data.dtype.kind == "f" and z.dtype.kind == "c":
+        if self.real is not None:
             M, T = self.real
             x = Level(*(np.ascontiguousarray(a.real) for a in x))
         matrix(M, x, self.s.w, T, self.s.t, self.s.k, self.s.C, data, W)
@@ -133,11 +133,11 @@ class NewtonSolver:
     ----------
     n_factorizations : int
         Factorizations so far.
-    data : (rows, nnz)
-        The last fill (real in a complex run).
+    data : (rows, nnz) float
+        The last fill.
     W, W_fill :
-        The bodies' scratch of the residual (in ``dtype``) and of the fill (in ``data``'s
-        dtype; the same object in a real run).
+        The bodies' scratch of the residual (in ``dtype``) and of the fill (real; the same
+        object in a real run).
     """
 
     def __init__(self, system: System, dtype, *, tol: float, max_iter: int, dense_max: int,
@@ -150,13 +150,12 @@ class NewtonSolver:
         complex_run = self.dtype.kind == "c"
         self.polish = max(polish, 1) if complex_run else polish
         self.n_dof = system.n_dof
-        fill_dtype = np.dtype(float) if complex_run else self.dtype
+        # the step matrix is real in every run (a complex run's: of the real parts)
         self.factorization = StepFactorization(system.indices, system.indptr, system.n,
-                                               fill_dtype, dense_max)
-        self.data = np.zeros((rows, system.nnz), dtype=fill_dtype)
+                                               np.dtype(float), dense_max)
+        self.data = np.zeros((rows, system.nnz))
         self.W = scratch(system.count("flex"), np.zeros(1, dtype=self.dtype))
-        self.W_fill = (self.W if fill_dtype == self.dtype
-                       else scratch(system.count("flex"), np.zeros(1)))
+        self.W_fill = scratch(system.count("flex"), np.zeros(1)) if complex_run else self.W
         self.csc = Csc(system.indices, system.indptr)
         self.n_factorizations = 0
         self.kept: Factor | None = None  # the factorization modified Newton keeps

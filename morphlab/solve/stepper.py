@@ -80,9 +80,8 @@ class Stepper:
                  scheme: str = "arnold-bruls"):
         self.system = system
         self.M = system.arrays
-        # the real parts of a complex system, whose solver fills real step matrices
-        # (NewtonSolver), else None
-        self.M_real = real_parts(self.M) if newton.data.dtype != system.dtype else None
+        # the real parts of a complex system, for its real step matrix (NewtonSolver)
+        self.M_real = real_parts(self.M) if system.dtype.kind == "c" else None
         self._T_real = (None, None)  # the last time table and its real parts
         self.P = system.parts()
         self.T = T
