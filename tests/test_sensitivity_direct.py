@@ -338,10 +338,18 @@ def test_steps_solved_from_python_give_the_sensitivities_of_compiled_steps(name)
     record to take the types from. The primal is the same bit for bit
     (``tests/test_kernels_newton.py``), the kernels are the same and the Python factor solves
     with the compiled loop's factors by the same kernels: the gradients are the same bit for
-    bit, in both variants, on dense and sparse factors."""
+    bit, in both variants, on dense and sparse factors.
+
+    A compiled step forms ``Dq``, ``Dv`` from the iteration at which the step before converged
+    on, and once more at its last matrix's iterate when it converges sooner; the Python loop
+    forms them at every iteration. Both cases have steps that converge sooner than the step
+    before (checked below), so the second fill is compared too (the pendulum's also has
+    steps that converge later)."""
     from morphlab.sensitivity import Adjoint
 
     build, p0, responses = responses_for(name)
+    iters = np.diff(ml.simulate(build(dict(p0)), **RUN).newton_log_offsets)[1:]
+    assert np.any(np.diff(iters) < 0), iters
     for dense_max in (1000, 0):
         for method in (Direct(), EXACT, Adjoint(), Adjoint(reuse=False)):
             resp = responses if isinstance(method, Direct) else {  # the adjoint's: with a vjp

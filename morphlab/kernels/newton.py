@@ -142,7 +142,7 @@ def _solve(b, work, LU, piv, Lx, Ux, Ud, pattern, transposed):
 
 
 @inlined
-def newton_loop(M, T, P, s, z, csc, F, opt, ws):
+def newton_loop(M, T, P, s, z, csc, F, opt, ws, full_from):
     """Full Newton–Raphson on the step ``s`` (:class:`~morphlab.kernels.assemble.Step`) from
     ``z``, in one call: iterations of the residual ``R_hist + E(z)``
     (:func:`~morphlab.kernels.assemble.residual`, parts ``P``: all of them) into ``ws.R``, the
@@ -157,7 +157,12 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws):
     Returns ``(z, iterations, status, bad)``: ``iterations`` up to convergence (the polish ones
     not counted), ``ws.hist[k] = (|R|, correction)`` of iteration ``k + 1``; ``F`` and
     ``ws.data`` hold the last factorization and matrix (at the iterate before the last
-    correction). Status: 0 converged; 1 non-finite residual (``ws.R`` holds it, ``z`` the
+    correction). ``full_from``: the first iteration whose fill forms every row of ``s.C``; the
+    ones before form the Newton matrix alone (``Dq``, ``Dv`` are read from the last fill only,
+    and the caller guesses which iteration that is). A step that converges before
+    ``full_from`` fills every row once more at its last matrix's iterate: the same matrix
+    and the same ``Dq``, ``Dv`` as a fill of every row at every iteration. Status: 0
+    converged; 1 non-finite residual (``ws.R`` holds it, ``z`` the
     iterate; no matrix formed); 2 a dense matrix is exactly singular (``bad`` the column
     without a nonzero pivot); 3 non-finite correction (``z`` the corrected iterate); 4 no
     convergence in ``max_iter`` iterations; 5 a sparse pivot failed the threshold (``bad`` its
@@ -173,8 +178,10 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws):
     dz = dz1.reshape((n, 1))
     work = np.empty_like(dz)
     data = ws.data
+    C1, data1 = s.C[:1], data[:1]  # the Newton matrix alone (all of C for one row)
     done = 0  # the iteration that met the tolerance
     it = 0
+    full = True  # the last fill formed every row of C
     while True:
         it += 1
         k = it if done == 0 else done
@@ -190,7 +197,8 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws):
             ws.hist[it - 1, 0] = np.sqrt(ssq)
         if not np.isfinite(ssq):
             return z, k, NONFINITE_RESIDUAL, -1
-        matrix(M, x, s.w, T, s.t, s.k, s.C, data, ws.W)
+        full = it >= full_from
+        matrix(M, x, s.w, T, s.t, s.k, s.C if full else C1, data if full else data1, ws.W)
         bad = factor_matrix(data[0], csc, F, opt.tau)
         if bad >= 0:
             return z, k, SINGULAR if F.order is None else PIVOT_REFUSED, bad
@@ -209,4 +217,6 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws):
             elif it == opt.max_iter:
                 return z, it, NOT_CONVERGED, -1
         if done > 0 and it - done >= opt.polish:
+            if not full and data.shape[0] > 1:  # Dq, Dv of the last matrix's iterate
+                matrix(M, x, s.w, T, s.t, s.k, s.C, data, ws.W)
             return z, done, CONVERGED, -1

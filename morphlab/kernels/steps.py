@@ -8,7 +8,9 @@ with the same kernels and arithmetic as the step-by-step loop from Python. After
 converged step it records what a sensitivity run reads of it, if one asks (the factors and
 the ``Dq``, ``Dv`` of its last Newton fill and its state: :func:`morphlab.kernels.adjoint.
 keep`), for the direct method's chunk of sensitivity steps right after
-(:func:`morphlab.kernels.direct.chunk`) or the adjoint's backward sweep. It returns at the end
+(:func:`morphlab.kernels.direct.chunk`) or the adjoint's backward sweep. A step's fill forms
+``Dq``, ``Dv`` from the iteration at which the step before converged on
+(:func:`~morphlab.kernels.newton.newton_loop`'s ``full_from``). It returns at the end
 of the chunk (the caller reports progress and checks for an interrupt) or at a step whose
 Newton iteration failed or needs Python (a sparse pivot that asks SuperLU for a new row
 order), with every step before it recorded.
@@ -77,7 +79,9 @@ def run_steps(M, T, P, sc, csc, F, opt, ws, H, k0, k1, keep):
             z[i] = old.a[i]
         for i in range(n_con):
             z[n_dof + i] = old.lam[i] / scale
-        z1, it, status, bad = newton_loop(M, T, P, s, z, csc, F, opt, ws)
+        # Dq, Dv from the iteration the step before converged at (nearly always the last)
+        z1, it, status, bad = newton_loop(M, T, P, s, z, csc, F, opt, ws,
+                                          max(H.iters[k - 1], 1))
         if status != CONVERGED:
             return k, status, bad, it, z1
         q1, v1 = H.Q[k % H.Q.shape[0]], H.V[k % H.V.shape[0]]
