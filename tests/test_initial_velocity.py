@@ -130,3 +130,48 @@ def test_sensitivity_to_the_drive_speed_goes_through_the_initial_velocities():
     assert g == pytest.approx(cs.gradients["rocker"]["w"], rel=1e-9)
     w4 = _closed_form(np.pi / 2 + OMEGA * 0.02)[4]
     assert g == pytest.approx(0.02 * w4 / OMEGA, rel=2e-5)  # O(h²): 4e-6 at h = 1 ms
+
+
+def _refuse(*args, **kwargs):
+    raise AssertionError("a constraint kernel ran")
+
+
+def test_the_need_for_initial_velocities_is_read_from_the_rates_at_the_start(monkeypatch):
+    """At ``q' = 0`` a row's velocity-level violation is minus its target's rate, so whether a
+    model needs initial velocities is read from its time values at ``t = 0``. It agrees with
+    the violation the constraint kernels give (a drive at speed, one that starts at rest, one
+    at a speed of zero) and runs no constraint kernel (a complex-step perturbed design
+    compiles none for it)."""
+    from morphlab.compile import initial
+    from morphlab.kernels import joints, slides
+
+    cases = {"at speed": OMEGA, "from rest": OMEGA * ml.SmoothStep(0.0, 0.05), "zero": 0.0}
+    for name, speed in cases.items():
+        system = ml.compile_model(rigid_four_bar(speed=speed))
+        system.v0 = np.zeros_like(system.v0)  # as before the compile gave them
+        _, phid = system.constraint_violation(system.q0, np.zeros_like(system.q0), 0.0)
+        with monkeypatch.context() as mp:
+            mp.setattr(joints, "values", _refuse)
+            mp.setattr(slides, "values", _refuse)
+            assert initial.needs_initial_velocities(system) == bool(np.any(phid != 0)), name
+    # velocities given (here the compile's own): none asked for
+    assert not initial.needs_initial_velocities(ml.compile_model(rigid_four_bar()))
+
+
+def test_a_drive_speed_of_zero_as_the_variable_starts_the_derivatives_moving():
+    """At a speed of zero the nominal starts at rest, but its initial velocities' derivative in
+    the speed is not zero: the perturbed design's rate at the start is zero in its real part
+    only, and the direct method must take the velocities of the perturbed design. The crank
+    then turns by ``w t``, so d(rocker angle at t_end)/d(speed) is t_end times the four-bar's
+    velocity ratio ``w4 / w`` at the start (closed form). The kinematics are linear in ``t``
+    here (the crank's angle, the rocker's through the fixed ratio), which the integrator
+    follows exactly: the gradient agrees with the closed form and with the whole-run complex
+    step to round-off (measured 3e-16 relative to both; asserted 1e-9)."""
+    resp = {"rocker": lambda r: r.reference("rocker")[1][-1]}
+    kw = dict(t_end=0.02, dt=1e-3, rho_inf=0.9)
+    build = lambda p: rigid_four_bar(speed=p["w"])  # noqa: E731
+    direct = ml.sensitivities(build, {"w": 0.0}, resp, method="direct", **kw)
+    cs = ml.sensitivities(build, {"w": 0.0}, resp, method="complex-step", **kw)
+    g = direct.gradients["rocker"]["w"]
+    assert g == pytest.approx(cs.gradients["rocker"]["w"], rel=1e-9)
+    assert g == pytest.approx(0.02 * _closed_form(np.pi / 2)[4] / OMEGA, rel=1e-9)

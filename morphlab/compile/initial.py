@@ -25,22 +25,29 @@ import scipy.sparse.linalg as spla
 from ..kernels import assemble as kassemble
 from ..kernels.ffrf import scratch
 from ..kernels.types import Level, Weights
+from .system import time_table
 
 # weights of the step-matrix kernel for [M J^T; J 0]: inertia, multipliers, constraint rows
 _SADDLE_WEIGHTS = Weights(1.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0)
 
 
 def needs_initial_velocities(system) -> bool:
-    """No initial velocity given anywhere, but a drive moving at ``t = 0`` (``Phi_t != 0``)."""
+    """No initial velocity given anywhere, but a drive moving at ``t = 0`` (``Phi_t != 0``).
+
+    At ``q' = 0`` the velocity-level violation of a row is minus its target's rate
+    (``kernels/joints.py: values``, ``kernels/slides.py: values``), so the rates of the time
+    values at ``t = 0`` decide, read without a kernel: the perturbed designs of a sensitivity
+    run (complex numbers for a complex step) compile no constraint kernels for it. A rate that
+    is zero in its real part and not in its imaginary part (a drive's speed of zero as the
+    design variable) asks for the velocities: their derivatives are not zero."""
     if system.n_con == 0 or np.any(system.v0 != 0):
         return False
-    _, phid = system.constraint_violation(system.q0, np.zeros_like(system.q0), 0.0)
-    return bool(np.any(phid != 0))
+    T = time_table(system, np.zeros(1))
+    return any(table is not None and bool(np.any(table.cd[:, 0] != 0))
+               for table in (T.rows, T.slides))
 
 
 def _saddle_matrix(system) -> sp.csc_matrix:
-    from .system import time_table
-
     dt = system.dtype
     n = system.n
     data = np.zeros((1, system.nnz), dtype=dt)
