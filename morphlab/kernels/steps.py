@@ -8,8 +8,8 @@ with the same kernels and arithmetic as the step-by-step loop from Python. After
 converged step it records what a sensitivity run reads of it, if one asks (the factors and
 the ``Dq``, ``Dv`` of its last Newton fill and its state: :func:`morphlab.kernels.adjoint.
 keep`), for the direct method's chunk of sensitivity steps right after
-(:func:`morphlab.kernels.direct.chunk`) or the adjoint's backward sweep. A step's fill forms
-``Dq``, ``Dv`` from the iteration at which the step before converged on
+(:func:`morphlab.kernels.direct.chunk`) or the adjoint's backward sweep. A step's fills form
+``Dq``, ``Dv`` from the iteration at which the step before converged onwards
 (:func:`~morphlab.kernels.newton.newton_loop`'s ``full_from``). It returns at the end
 of the chunk (the caller reports progress and checks for an interrupt) or at a step whose
 Newton iteration failed or needs Python (a sparse pivot that asks SuperLU for a new row
