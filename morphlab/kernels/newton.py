@@ -178,10 +178,9 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws, full_from):
     dz = dz1.reshape((n, 1))
     work = np.empty_like(dz)
     data = ws.data
-    C1, data1 = s.C[:1], data[:1]  # the Newton matrix alone (all of C for one row)
+    C1, data1 = s.C[:1], data[:1]  # the fill of the Newton matrix alone
     done = 0  # the iteration that met the tolerance
     it = 0
-    full = True  # the last fill formed every row of C
     while True:
         it += 1
         k = it if done == 0 else done
@@ -197,7 +196,7 @@ def newton_loop(M, T, P, s, z, csc, F, opt, ws, full_from):
             ws.hist[it - 1, 0] = np.sqrt(ssq)
         if not np.isfinite(ssq):
             return z, k, NONFINITE_RESIDUAL, -1
-        full = it >= full_from
+        full = it >= full_from  # this fill forms every row of C
         matrix(M, x, s.w, T, s.t, s.k, s.C if full else C1, data if full else data1, ws.W)
         bad = factor_matrix(data[0], csc, F, opt.tau)
         if bad >= 0:
