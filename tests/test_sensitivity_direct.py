@@ -454,6 +454,49 @@ def test_linear_variables_take_real_products(monkeypatch, scheme):
                 assert abs(p0[v] * (a[v] - b[v])) <= tol * scale, (method, r, v, a[v], b[v])
 
 
+@pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
+def test_a_design_of_linear_variables_alone_has_no_perturbed_path(monkeypatch, scheme):
+    """When every variable takes the linear path, the pseudo-load data carry no perturbed
+    system (``MN`` None, real working arrays), so the kernels compile none of that path's
+    code. Its gradients equal those with every variable forced through the perturbed path
+    (then a complex system) to the round-off of the recursion (1e-12 of the largest
+    logarithmic sensitivity, as in the test above), for the direct method and the adjoint,
+    both weightings."""
+    from morphlab.sensitivity import designs, strategies
+
+    build, p0, every = responses_for("mechanism")
+    chosen = ["E", "t", "m_crank", "M"]
+    resp = {k: every[k] for k in ("displacement", "ks_stress", "rms_error")}
+    made = []
+    real_pseudo, real_fields = strategies.pseudo_data, designs._linear_fields
+
+    def spy(*args):
+        made.append(real_pseudo(*args))
+        return made[-1]
+
+    monkeypatch.setattr(strategies, "pseudo_data", spy)
+    for method in (Direct(reuse=False), ml.Adjoint(reuse=False)):
+        runs = {}
+        for linear in (True, False):
+            monkeypatch.setattr(designs, "_linear_fields",
+                                real_fields if linear else (lambda: set()))
+            made.clear()
+            runs[linear] = ml.sensitivities(build, p0, resp, method=method, scheme=scheme,
+                                            variables=chosen, **RUN)
+            (ps,) = made
+            if linear:
+                assert ps.MN is None
+                assert all(x.dtype == np.float64 for x in (ps.DN, ps.VN, ps.D0))
+            else:
+                assert ps.MN is not None and ps.DN.dtype == np.complex128
+        for r in runs[True].gradients:
+            a, b = runs[True].gradients[r], runs[False].gradients[r]
+            scale = max(abs(p0[v] * b[v]) for v in chosen)
+            assert scale > 0
+            for v in chosen:
+                assert abs(p0[v] * (a[v] - b[v])) <= 1e-12 * scale, (method, r, v, a[v], b[v])
+
+
 def test_a_variable_of_a_load_profile_alone_gets_its_time_derivative():
     """The torque's rate ``r`` enters only its time profile (no compiled array changes): its
     derivative comes from the time tables, which a perturbed design evaluates only where its

@@ -188,9 +188,9 @@ def _design_share(a, M, T, sc, new, old, k):
         stiffness_share(B, Fx, E, old, sc.w_old, mu, a.KO, a.KX, a.KE, a.KV, a.grad, L)
     for u in range(a.UV.shape[0]):  # a unit: one variable, or a group with disjoint rows
         v = a.UV[u]
-        explicit(ps, M, T, v, new, column.XN, sc.w_new, k, column)
+        explicit(ps, ps.MN, M, T, v, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit(ps, M, T, v, old, column.XO, sc.w_old, k - 1, column)
+            explicit(ps, ps.MN, M, T, v, old, column.XO, sc.w_old, k - 1, column)
         if probe.shape[0] > 0:
             for r in range(col.shape[0]):
                 probe[u, r] = col[r]

@@ -79,9 +79,9 @@ def rhs(d, M, T, sc, D, new, old, k):
     for i in range(n_x):
         for r in range(col.shape[0]):
             col[r] = 0.0
-        explicit(ps, M, T, i, new, column.XN, sc.w_new, k, column)
+        explicit(ps, ps.MN, M, T, i, new, column.XN, sc.w_new, k, column)
         if sc.has_old:
-            explicit(ps, M, T, i, old, column.XO, sc.w_old, m, column)
+            explicit(ps, ps.MN, M, T, i, old, column.XO, sc.w_old, m, column)
         for r in range(col.shape[0]):
             d.rhs[r, i] = -col[r]
     # the state part: R_q dq_hat + R_v dv_hat over the predictors of every column

@@ -46,9 +46,10 @@ class Pseudo(NamedTuple):
     coordinates; ``PO`` (n_x + 1,), ``PP``: its positions in the flat design data, ``PV`` (real)
     the derivatives there and ``VN`` (``DN``'s dtype) the perturbed design's values, ``D0``
     the nominal's (``DN``'s dtype); ``ML``, ``ZL``, ``TL``, ``tl``: the linear path;
-    ``MN``, ``DN``, ``TN``, ``tn``, ``pert``: the perturbed path; ``forward``: the perturbed
-    path is a forward difference (else a complex step); ``WL``, ``WN``: the bodies' scratch of
-    each path.
+    ``MN``, ``DN``, ``TN``, ``tn``, ``pert``: the perturbed path (``MN`` None when no
+    variable takes it: then ``DN``, ``VN``, ``D0`` and ``WN`` are real and the kernels compile
+    none of its code); ``forward``: the perturbed path is a forward difference (else a complex
+    step); ``WL``, ``WN``: the bodies' scratch of each path.
     """
 
     OFF: np.ndarray
@@ -121,11 +122,13 @@ def load(xn, x):
 
 
 @inner
-def explicit(ps, M, T, i, x, xn, w, k, c):
+def explicit(ps, MN, M, T, i, x, xn, w, k, c):
     """Add ``dR/dp_i`` of one level's residual share (state ``x``, the same in the perturbed
     path's dtype ``xn`` (:func:`load`), weights ``w``, time index ``k``) to the column
     ``c.R`` (:class:`Column`). ``M``, ``T``: the nominal system and time values (the forward
-    difference subtracts their residual)."""
+    difference subtracts their residual). ``MN``: ``ps.MN``, passed on its own: None when no
+    variable takes the perturbed path, and then Numba compiles none of that path's code (it
+    prunes a branch on an argument that is None, not on a field of one)."""
     n_dof = x.q.shape[0]
     R, RN, R0, mask = c.R, c.RN, c.R0, c.mask
     a, b = ps.PO[i], ps.PO[i + 1]
@@ -144,12 +147,12 @@ def explicit(ps, M, T, i, x, xn, w, k, c):
             residual(ps.ML, x, w, ps.TL, ps.tl[i], k, Parts(o, ps.IDX, mask), n_dof, R, ps.WL)
         for j in range(a, b):
             ps.ZL[ps.PP[j]] = 0.0
-    if _any(ps.OFFN[i]):
+    if MN is not None and _any(ps.OFFN[i]):
         P = Parts(ps.OFFN[i], ps.IDX, mask)
         for j in range(RN.shape[0]):
             RN[j] = 0.0
         set_positions(ps.DN, pos, ps.VN[a:b])
-        residual(ps.MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
+        residual(MN, xn, w, ps.TN, ps.tn[i], k, P, n_dof, RN, ps.WN)
         set_positions(ps.DN, pos, ps.D0[a:b])
         if ps.forward:
             for j in range(R0.shape[0]):
@@ -172,4 +175,4 @@ def explicit_column(ps, M, T, i, x, w, k, c):
     and inspection (the adjoint finds the rows a variable touches in its sweep's kernel,
     ``morphlab.sensitivity.adjoint._touched``, and compiles no call of this one)."""
     load(c.XN, x)
-    explicit(ps, M, T, i, x, c.XN, w, k, c)
+    explicit(ps, ps.MN, M, T, i, x, c.XN, w, k, c)

@@ -330,10 +330,6 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     the linear path in real arithmetic, the perturbed path by complex step (``pert`` complex)
     or forward difference; ``T0``: the nominal time values of the run."""
     forward = not np.iscomplexobj(pert)
-    # complex arrays on both paths: a forward difference evaluates its perturbed residual in
-    # complex arithmetic with zero imaginary parts, so it shares every compiled kernel with
-    # the complex step (the same types) instead of compiling its own
-    dt = np.dtype(np.complex128)
     lin_parts, nl_parts, fparts = [], [], []
     need = set()  # kinds the perturbed path evaluates
     lin_time, nl_time = [], []
@@ -347,6 +343,12 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
         fparts.append(sorted(flex))
         lin_time.append((ch.time, 1.0) if ch.time is not None else None)
         nl_time.append((ch.time, pert[len(nl_time)]) if ch.time is not None else None)
+    # the perturbed path in complex arrays for both perturbations: a forward difference
+    # evaluates its perturbed residual in complex arithmetic with zero imaginary parts, so it
+    # shares every compiled kernel with the complex step (the same types) instead of compiling
+    # its own; real, and no system (``MN`` None), when no variable takes the path: then the
+    # kernels compile none of its code (:func:`~morphlab.kernels.pseudo.explicit`)
+    dt = np.dtype(np.complex128 if need else np.float64)
     A = sys0.arrays
     OFF, IDX, _, _ = pack_parts(A, lin_parts)
     OFFN, IDXN, _, _ = pack_parts(A, nl_parts)
@@ -359,7 +361,8 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     PO[1:] = np.cumsum([ch.positions.size for ch in chs])
     PP = np.concatenate([ch.positions for ch in chs] + [np.zeros(0, np.int64)])
     PV = np.concatenate([ch.derivative for ch in chs] + [np.zeros(0)])
-    VN = np.concatenate([np.asarray(ch.values, dtype=dt) for ch in chs] + [np.zeros(0, dt)])
+    VN = np.concatenate([np.asarray(ch.values) for ch in chs] + [np.zeros(0)])
+    VN = VN.astype(dt) if need else np.ascontiguousarray(VN.real)  # unread without the path
     D0 = sys0.design.astype(dt)[PP]
     # the linear path: the linear design fields as views of a zero vector
     ZL = np.zeros(sys0.design.shape)
@@ -370,8 +373,10 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     DN = sys0.design.astype(dt)
     if "bodies" in need:
         need.update(("flex", "elements"))
-    MN = views(sys0.arrays_as(dt), DN)
-    MN = MN._replace(**{k: None for k in KIND_NAMES if k not in need})
+    MN = None
+    if need:
+        MN = views(sys0.arrays_as(dt), DN)
+        MN = MN._replace(**{k: None for k in KIND_NAMES if k not in need})
     TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True, kinds=need)
     n_flex = sys0.count("flex")
     return Pseudo(OFF, OFFN, IDX, FOFF, FIDX, PO, PP, PV, VN, D0, ML, ZL, TL, tl, MN, DN, TN,
