@@ -95,6 +95,34 @@ def test_adjoint_equals_direct(name, scheme):
             assert abs(a.gradients[r][v] - d.gradients[r][v]) <= 1e-10 * scale, (r, v)
 
 
+@pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
+def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
+    """The compiled sweep is called for the recorded steps, the initial solve (solved from
+    Python) and the probe of the rows the variables touch (a shape variable: ``x_D``); all
+    with arguments of the same Numba types, so a run compiles one sweep. The old level's
+    weights are passed as an argument (None without an old level, which prunes its code):
+    the initial solve's scheme has none, and a sweep given its None would compile a second
+    time."""
+    import numba
+
+    import morphlab.sensitivity.adjoint as sa
+
+    build, p0, resp = adjoint_responses("mechanism")
+    real = sa.kadj.sweep
+    seen = []
+
+    def spy(*args):
+        seen.append(tuple(numba.typeof(x) for x in args))
+        return real(*args)
+
+    monkeypatch.setattr(sa.kadj, "sweep", spy)
+    ml.sensitivities(build, p0, resp, method="adjoint", scheme=scheme, **RUN)
+    assert len(seen) >= 3  # the probe, the recorded steps, the initial solve
+    assert len(set(seen)) == 1
+    has_old = scheme == "paper"
+    assert isinstance(seen[0][-1], numba.types.NoneType) != has_old
+
+
 def test_adjoint_equals_the_whole_run_complex_step():
     """Against the reference without truncation error, the exact variant: as tight as the
     direct method is (tests/test_sensitivity_direct.py: 1e-8 of each response's gradient

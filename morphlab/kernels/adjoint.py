@@ -256,10 +256,11 @@ def refinement_residual(a, csc):
 
 
 @inlined
-def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
+def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
     """The rest of step ``k`` once ``a.mu`` holds ``μ``: the design's share (the step from the
     state ``old`` to ``new``), the adjoints of the predictors (``Dq``, ``Dv`` the step's,
-    (nnz,)) and of the previous state. Returns True at the initial solve (``k == 0``).
+    (nnz,)) and of the previous state, with the old level's share for ``w_old`` not None (the
+    :func:`sweep`'s). Returns True at the initial solve (``k == 0``).
 
     Inlined into :func:`sweep`, its one caller (a step solved from Python goes through
     :func:`sweep` too, with ``solved``): compiled as a kernel of its own, its code and that of
@@ -288,9 +289,9 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
     for i in range(n_con):
         for c in range(m):
             a.Bl[i, c] = 0.0
-    if sc.has_old:  # the paper's weighting: the old level's share
+    if w_old is not None and sc.has_old:  # the paper's weighting: the old level's share
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-        matrix(M, old, sc.w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
+        matrix(M, old, w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
         subtract_products_transposed(a.mats[4], a.mats[5], csc.indices, csc.indptr, n_dof,
                                      a.mu, a.Bq, a.Bv)
         for i in range(n):
@@ -307,15 +308,17 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
 
 
 @kernel(nogil=True)
-def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved):
+def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved, w_old):
     """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
     factors, fills and states recorded in ``K`` (:class:`Keep`); ``F``: a factor of the run,
     for the patterns; ``refine``: None for the reuse variant (then the exact variant's code is
     not compiled), else the exact variant's number of refinement sweeps. ``solved``: the time
     index of a step whose ``μ`` the caller has solved already (a step solved from Python: its
     :func:`begin`, solve and, in the exact variant, ``a.mats`` and refinement are the
-    caller's; its factor fields in ``K`` are not read), -1 for none. Returns True when it
-    reached the initial solve."""
+    caller's; its factor fields in ``K`` are not read), -1 for none. ``w_old``: the weights of
+    the scheme's old level (``sc.w_old``), None for a scheme without one: then the old level's
+    matrix code is not compiled (Numba prunes a branch on an argument that is None, not on a
+    field of one). Returns True when it reached the initial solve."""
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):
@@ -341,6 +344,6 @@ def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved):
             Dq, Dv = K.D[j, 0], K.D[j, 1]
         else:
             Dq, Dv = a.mats[1], a.mats[2]
-        if finish(a, M, T, sc, csc, Dq, Dv, new, old, k):
+        if finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
             return True
     return False

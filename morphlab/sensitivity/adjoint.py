@@ -262,6 +262,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     a = _sweep_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS), settings.n_steps + 1)
     sc = stp.scheme_of()
+    w_old = _old(sc)
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
     N = settings.n_steps
     starts = sorted(hook.checkpoints)
@@ -281,7 +282,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
         if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
             a = _with_terms(a, vjps, sys0, lo, k)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact, -1)
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact, -1, w_old)
         else:
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
@@ -291,7 +292,8 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
                     break
                 k0 = max(lo, int(K.k0[0]))
                 a = _with_terms(a, vjps, sys0, k0, k)
-                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact, -1)
+                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact, -1,
+                           w_old)
                 like = K, F
                 k = k0 - 1
             # the next segment's record is made of them
@@ -358,6 +360,13 @@ def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
     return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO, K
 
 
+def _old(sc):
+    """The sweep's ``w_old``: the weights of the scheme's old level, None without one. Every
+    sweep of a run takes the regular steps' (``stp.scheme_of()``), also at the initial solve
+    and in the probe, which end before the old level's share: one compiled signature."""
+    return sc.w_old if sc.has_old else None
+
+
 def _with_terms(a, vjps, sys0, lo: int, hi: int):
     """The sweep state ``a`` with the responses' terms of the time indices ``lo .. hi``."""
     H = _terms(vjps, np.arange(lo, hi + 1), sys0)
@@ -381,7 +390,8 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
     K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k)
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k,
+               _old(stp.scheme_of()))
 
 
 def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tuple:
@@ -426,7 +436,7 @@ def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tu
     sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
     D = np.zeros(sys0.nnz) if refine is None else None
     K, F = solved_step(like, x, x, D, D, 0)
-    kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0)
+    kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0, _old(stp.scheme_of()))
     for j, i in enumerate(probed):
         rows[i] = np.flatnonzero(a.probe[j] != 0.0)
     return _offsets(rows)
