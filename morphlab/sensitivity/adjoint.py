@@ -271,7 +271,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     while k >= 0:
         if k in hook.python:
             a = _with_terms(a, vjps, sys0, k, k)
-            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact, like)
+            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact, like, w_old)
             k -= 1
             continue
         lo = k
@@ -373,13 +373,23 @@ def _with_terms(a, vjps, sys0, lo: int, hi: int):
     return a._replace(Hq=H[0], Hv=H[1], Ha=H[2], Hl=H[3], h0=np.array([lo], dtype=np.int64))
 
 
-def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like) -> None:
-    """Step ``k`` of the sweep with a factor solved from Python: the same kernels around the
-    solves as the compiled sweep (``refine`` as for it), the rest of the step the sweep's
-    own, on a record of this step (:func:`~morphlab.solve.record.solved_step` with the types
-    of ``like``, a record and factor arrays of the run or None)."""
-    kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
+def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like,
+                 w_old) -> None:
+    """Step ``k`` of the sweep with a factor from Python, on a record of this step
+    (:func:`~morphlab.solve.record.solved_step` with the types of ``like``, a record and
+    factor arrays of the run or None; ``refine``, ``w_old`` as for the sweep). A compiled
+    factor of the kind of the run's goes into the record, and the sweep takes the whole step;
+    another (SuperLU's) is solved here, with the same kernels around the solves as the
+    sweep's, and the sweep takes the rest of the step. The first compiles no kernel of its
+    own to be called from Python."""
     lu = step.factor
+    if like is not None and lu.compiled:
+        F = lu.arrays()
+        if (F.pattern is None) == (like[1].pattern is None):
+            K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k, F)
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, -1, w_old)
+            return
+    kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is not None:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
@@ -390,8 +400,7 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
     K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k,
-               _old(stp.scheme_of()))
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k, w_old)
 
 
 def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tuple:

@@ -75,17 +75,23 @@ def template(system: System, factorization, blocks: bool) -> tuple[Keep, Factors
 
 
 def solved_step(like: tuple[Keep, Factors] | None, new: Level, old: Level, Dq, Dv,
-                k: int) -> tuple[Keep, Factors]:
+                k: int, factor: Factors | None = None) -> tuple[Keep, Factors]:
     """A record of the one step ``k`` solved from Python, for the kernels that read the steps
-    from a record with the caller's solve in its place (``sweep`` with ``solved``, ``chunk``
-    with ``rhs_only``), and the factor arrays to pass with it: the step's states ``old``,
-    ``new`` (rows 0 and 1) and the ``Dq``, ``Dv`` (nnz,) of its fill (None: the exact variant,
-    no blocks). Its factor fields are views of the first row of those of ``like``, a record
-    and its factor arrays that the kernels take already (or :func:`template`), so that they
-    take this one with the types they were compiled for (the fields are not read); with
-    ``like`` None (a run without compiled factors), a dense factor of one entry."""
+    from a record, and the factor arrays to pass with it: the step's states ``old``, ``new``
+    (rows 0 and 1) and the ``Dq``, ``Dv`` (nnz,) of its fill (None: the exact variant, no
+    blocks). With ``factor``, the arrays of the step's compiled factor (of the kind of
+    ``like``'s), the record holds them and the kernels solve with it as with a recorded
+    step's; without, the caller solves in their place (``sweep`` with ``solved``, ``chunk``
+    with ``rhs_only``) and the record's factor fields are views of the first row of those of
+    ``like``, a record and its factor arrays that the kernels take already (or
+    :func:`template`), so that they take this one with the types they were compiled for (the
+    fields are not read); with ``like`` None (a run without compiled factors), a dense factor
+    of one entry."""
     dt = np.asarray(new.q).dtype if like is None else like[0].Q.dtype
-    if like is None:
+    if factor is not None:
+        F = factor
+        fac = [None if x is None else x[None] for x in (F.LU, F.piv, F.Lx, F.Ux, F.Ud)]
+    elif like is None:
         F = Factors(np.zeros((1, 1), dt), np.zeros(1, np.int64), None, None, None, None, None)
         fac = [np.zeros((1, 1, 1), dt), np.zeros((1, 1), np.int64), None, None, None]
     else:
