@@ -16,6 +16,8 @@ from test_sensitivity_direct import CASES, RUN, responses_for
 import morphlab as ml
 from morphlab.results.gradients import ResponseVJP
 
+RUN_STEPS = round(RUN["t_end"] / RUN["dt"])
+
 
 class NodeY:
     """y of a beam node at the final time: ``R_y + sin(th) (X_x + w_x) + cos(th) (X_y + w_y)``
@@ -342,6 +344,41 @@ def test_design_data_formed_beside_the_primal_give_the_same_bits(name):
         assert len(seen) == len(p0) and where == ({"morphlab-beside"} if overlap else
                                                   {"MainThread"}), (overlap, seen)
     assert runs[True].values == runs[False].values
+    for r in resp:
+        assert runs[True].gradients[r] == runs[False].gradients[r], r
+
+
+def test_design_shares_formed_beside_the_sweep_give_the_same_bits(monkeypatch):
+    """The design's shares of each block of swept steps (``kernels/adjoint.py: shares``) run
+    in the worker thread while the sweep goes on with the next block, or in the caller's
+    thread: block after block in the order of the sweep, so the same gradients bit for bit.
+    Blocks of 4 steps here (30 steps: several blocks besides the steps solved from Python),
+    and every block's shares (all but the probe's) in the worker thread with ``overlap``."""
+    import threading
+
+    import morphlab.sensitivity.adjoint as sa
+    from morphlab.sensitivity import Adjoint
+
+    build, p0, resp = adjoint_responses("mechanism")
+    real = sa.kadj.shares
+    monkeypatch.setattr(sa, "_block", lambda *args: 4)
+    runs = {}
+    for overlap in (True, False):
+        where = []
+
+        def spy(*args, where=where):
+            where.append((threading.current_thread().name, args[-2], args[-1]))
+            return real(*args)
+
+        monkeypatch.setattr(sa.kadj, "shares", spy)
+        runs[overlap] = ml.sensitivities(build, p0, resp, method=Adjoint(overlap=overlap),
+                                         **RUN)
+        probe, blocks = where[0], where[1:]
+        assert probe[0] == "MainThread"
+        assert sum(hi - lo + 1 for _, hi, lo in blocks) == RUN_STEPS + 1  # every step once
+        assert max(hi - lo + 1 for _, hi, lo in blocks) == 4 and len(blocks) >= 8
+        threads = {t.split("_")[0] for t, _, _ in blocks}
+        assert threads == ({"morphlab-beside"} if overlap else {"MainThread"}), threads
     for r in resp:
         assert runs[True].gradients[r] == runs[False].gradients[r], r
 

@@ -8,10 +8,7 @@ Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own deriva
 
 * ``z̄ = (ā + bh2 q̄ + gh v̄ + ga ḡ, s λ̄)``;
 * ``μ = J^-T z̄`` with the step's kept factors;
-* the design's share ``grad_i -= (dR/dp_i)^T μ`` (:mod:`morphlab.kernels.pseudo`, over the
-  residual rows variable ``i``'s parts touch); for the variables that change the bodies'
-  linear data alone, the data gradient ``G += d(μ^T R)/dD`` instead, once for all of them
-  (:mod:`morphlab.kernels.ffrf_adjoint`; the caller contracts it with their ``dD/dp``);
+* ``μ`` kept for the design's share (below);
 * ``q̂̄ = q̄ - Dq^T μ``, ``v̂̄ = v̄ - Dv^T μ`` with the ``Dq``, ``Dv`` kept from the step's last
   Newton fill (the direct method's reuse variant transposed; the exact variant forms them and
   ``J*`` at the converged state and refines ``μ`` against ``J*``);
@@ -20,6 +17,15 @@ Ba, Bg, Bl`` ((width, m), one column per response) and the responses' own deriva
 
 At the initial solve (time index 0) the sweep stops with ``Bq, Bv`` holding the adjoints of
 ``q_0, q'_0``, which meet their derivatives from ``build``.
+
+The design's share of each step, ``grad_i -= (dR/dp_i)^T μ`` (:mod:`morphlab.kernels.pseudo`,
+over the residual rows variable ``i``'s parts touch; for the variables that change the bodies'
+linear data alone, the data gradient ``G += d(μ^T R)/dD`` instead, once for all of them,
+:mod:`morphlab.kernels.ffrf_adjoint`, which the caller contracts with their ``dD/dp``), feeds
+nothing back into the recursion: a kernel of its own (:func:`shares`) forms it from the kept
+``μ`` of a block of swept steps, beside the sweep of the next block. Apart, the sweep compiles
+without the types of the pseudo-load data (about half its compile), and the shares take a
+second core where one is free.
 """
 
 from typing import NamedTuple
@@ -61,18 +67,11 @@ class Keep(NamedTuple):
 class Sweep(NamedTuple):
     """The adjoint state and buffers of a backward sweep: ``Bq, Bv, Ba, Bg`` (n_dof, m),
     ``Bl`` (n_con, m) (module docstring); the responses' terms ``Hq, Hv, Ha`` (n_t, n_dof,
-    m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``; the
-    pseudo-load data ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,),
-    ``RI``, and its units of evaluation (unit ``u`` evaluates variable ``UV[u]`` of ``ps``
-    for the variables ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.units.share_units``);
-    the gradient ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no
-    rows: none) with its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.
-    data_gradient`), accumulated; the stiffness derivatives of its variables ``KO``, ``KX``,
-    ``KE``, ``KV`` (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`);
-    buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``column``
-    (:class:`~morphlab.kernels.pseudo.Column`), ``mats`` (6, nnz), ``refined`` (n_t,);
-    ``probe`` (units, n): no rows in a sweep; with rows, a probe of the rows the variables
-    touch (:func:`_design_share`)."""
+    m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``;
+    buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``mats`` (6, nnz),
+    ``refined`` (n_t,) and the bodies' scratch ``W`` (:func:`~morphlab.kernels.ffrf.scratch`,
+    real). The design's shares are not here (:class:`Shares`): the sweep compiles without
+    the pseudo-load data's types."""
 
     Bq: np.ndarray
     Bv: np.ndarray
@@ -84,6 +83,28 @@ class Sweep(NamedTuple):
     Ha: np.ndarray
     Hl: np.ndarray
     h0: np.ndarray
+    zb: np.ndarray
+    mu: np.ndarray
+    r: np.ndarray
+    work: np.ndarray
+    gb: np.ndarray
+    mats: np.ndarray
+    refined: np.ndarray
+    W: tuple
+
+
+class Shares(NamedTuple):
+    """What the design's shares read and accumulate (:func:`shares`): the pseudo-load data
+    ``ps`` with the residual rows each variable touches ``RO`` (n_x + 1,), ``RI``, and its
+    units of evaluation (unit ``u`` evaluates variable ``UV[u]`` of ``ps`` for the variables
+    ``UI[UO[u]:UO[u + 1]]``: ``morphlab.sensitivity.units.share_units``); the gradient
+    ``grad`` (n_x, m) and the bodies' data gradient ``G`` (n_design, m; no rows: none) with
+    its offsets ``GO`` (:func:`~morphlab.kernels.ffrf_adjoint.data_gradient`), accumulated;
+    the stiffness derivatives of its variables ``KO``, ``KX``, ``KE``, ``KV``
+    (:func:`~morphlab.kernels.ffrf_adjoint.stiffness_share`); the buffer ``column``
+    (:class:`~morphlab.kernels.pseudo.Column`); ``probe`` (units, n): no rows for the shares
+    of a run; with rows, a probe of the rows the variables touch (:func:`_design_share`)."""
+
     ps: tuple
     RO: np.ndarray
     RI: np.ndarray
@@ -97,14 +118,7 @@ class Sweep(NamedTuple):
     KX: np.ndarray
     KE: np.ndarray
     KV: np.ndarray
-    zb: np.ndarray
-    mu: np.ndarray
-    r: np.ndarray
-    work: np.ndarray
-    gb: np.ndarray
     column: tuple
-    mats: np.ndarray
-    refined: np.ndarray
     probe: np.ndarray
 
 
@@ -165,16 +179,17 @@ def kept_factor(K, F, j):
                    F.order, F.pattern)
 
 
-@inner
-def _design_share(a, M, T, sc, new, old, k):
+@inlined
+def _design_share(a, M, T, sc, mu, new, old, k):
     """``grad_i -= (dR_k/dp_i)^T mu`` for every variable of a unit, over the rows it touches;
-    the bodies' data gradient ``G += d(mu^T R_k)/dD`` (module docstring). A probe (``a.probe``
-    with rows: ``morphlab.sensitivity.adjoint._touched``) writes unit ``u``'s explicit column
-    into ``a.probe[u]`` instead, all of it: which rows a variable touches is what it finds."""
+    the bodies' data gradient ``G += d(mu^T R_k)/dD`` (module docstring); ``a``:
+    :class:`Shares`, ``mu`` (n, m) the step's adjoint vector. A probe (``a.probe`` with rows:
+    ``morphlab.sensitivity.adjoint._touched``) writes unit ``u``'s explicit column into
+    ``a.probe[u]`` instead, all of it: which rows a variable touches is what it finds."""
     # the fields the loop reads, bound before it (read inside, the large ``ps`` is extracted
     # from ``a`` again for every call), and ``explicit`` called here, not through a helper
     # (an inlined one copies ``ps`` too): each costs 0.2 of the pendulum's sweep
-    ps, mu, column, probe = a.ps, a.mu, a.column, a.probe
+    ps, column, probe = a.ps, a.column, a.probe
     col = column.R
     m = mu.shape[1]
     load(column.XN, new)  # the levels in the perturbed path's dtype, once for all variables
@@ -203,6 +218,17 @@ def _design_share(a, M, T, sc, new, old, k):
                 for c in range(m):
                     a.grad[i, c] -= col[r] * mu[r, c]
                 col[r] = 0.0
+
+
+@kernel(nogil=True)
+def shares(a, M, T, sc, K, MU, k_hi, k_lo):
+    """The design's shares (:func:`_design_share`) of the steps ``k_hi`` down to ``k_lo``
+    recorded in ``K`` (:class:`Keep`) with their adjoint vectors ``MU[k - k_lo]`` (n, m),
+    which :func:`sweep` wrote, into the :class:`Shares` ``a``. Apart from the sweep: nothing
+    of the sweep reads them, so they can run beside the sweep's next steps."""
+    for k in range(k_hi, k_lo - 1, -1):
+        j = k - K.k0[0]
+        _design_share(a, M, T, sc, MU[k - k_lo], kept_state(K, j + 1), kept_state(K, j), k)
 
 
 @kernel
@@ -242,7 +268,7 @@ def exact_matrices(a, M, T, sc, new, k):
     """The exact variant: ``D0, Dq, Dv`` at the converged state ``new`` of time index ``k``
     into ``a.mats[0:3]`` and ``J* = D0 + bh2 Dq + gh Dv`` over ``a.mats[0]``."""
     C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    matrix(M, new, sc.w_new, T, np.int64(0), k, C, a.mats[0:3], a.ps.WL)
+    matrix(M, new, sc.w_new, T, np.int64(0), k, C, a.mats[0:3], a.W)
     bh2, gh = sc.pc[5], sc.pc[6]
     J = a.mats[0]
     for p in range(J.shape[0]):
@@ -257,10 +283,10 @@ def refinement_residual(a, csc):
 
 @inlined
 def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
-    """The rest of step ``k`` once ``a.mu`` holds ``μ``: the design's share (the step from the
-    state ``old`` to ``new``), the adjoints of the predictors (``Dq``, ``Dv`` the step's,
-    (nnz,)) and of the previous state, with the old level's share for ``w_old`` not None (the
-    :func:`sweep`'s). Returns True at the initial solve (``k == 0``).
+    """The rest of step ``k`` (from the state ``old`` to ``new``) once ``a.mu`` holds ``μ``:
+    the adjoints of the predictors (``Dq``, ``Dv`` the step's, (nnz,)) and of the previous
+    state, with the old level's share for ``w_old`` not None (the :func:`sweep`'s). Returns
+    True at the initial solve (``k == 0``).
 
     Inlined into :func:`sweep`, its one caller (a step solved from Python goes through
     :func:`sweep` too, with ``solved``): compiled as a kernel of its own, its code and that of
@@ -271,7 +297,6 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
     m = a.Bq.shape[1]
     h, cqa, cqg, cva, cvg = sc.pc[0], sc.pc[1], sc.pc[2], sc.pc[3], sc.pc[4]
     gan, ggn = sc.upd[1], sc.upd[2]
-    _design_share(a, M, T, sc, new, old, k)
     # the adjoints of q_hat and v_hat
     subtract_products_transposed(Dq, Dv, csc.indices, csc.indptr, n_dof, a.mu, a.Bq, a.Bv)
     if k == 0:
@@ -291,7 +316,7 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
             a.Bl[i, c] = 0.0
     if w_old is not None and sc.has_old:  # the paper's weighting: the old level's share
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-        matrix(M, old, w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.ps.WL)
+        matrix(M, old, w_old, T, np.int64(0), k - 1, C, a.mats[3:6], a.W)
         subtract_products_transposed(a.mats[4], a.mats[5], csc.indices, csc.indptr, n_dof,
                                      a.mu, a.Bq, a.Bv)
         for i in range(n):
@@ -308,9 +333,10 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
 
 
 @kernel(nogil=True)
-def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved, w_old):
+def sweep(M, T, sc, csc, F, K, a, MU, k_hi, k_lo, refine, solved, w_old):
     """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
-    factors, fills and states recorded in ``K`` (:class:`Keep`); ``F``: a factor of the run,
+    factors, fills and states recorded in ``K`` (:class:`Keep`), each step's ``μ`` into
+    ``MU[k - k_lo]`` for its design's share (:func:`shares`); ``F``: a factor of the run,
     for the patterns; ``refine``: None for the reuse variant (then the exact variant's code is
     not compiled), else the exact variant's number of refinement sweeps. ``solved``: the time
     index of a step whose ``μ`` the caller has solved already (a step solved from Python: its
@@ -340,6 +366,9 @@ def sweep(M, T, sc, csc, F, K, a, k_hi, k_lo, refine, solved, w_old):
                                 a.mu[i, c] += a.r[i, c]
                     rr, bb = refinement_residual(a, csc)
                     a.refined[k] = rr / max(bb, 1e-300)
+        for i in range(n):
+            for c in range(m):
+                MU[k - k_lo, i, c] = a.mu[i, c]
         if refine is None:
             Dq, Dv = K.D[j, 0], K.D[j, 1]
         else:

@@ -11,10 +11,12 @@ steps SuperLU chooses a row order on) one by one. When the record of the whole r
 fit ``memory`` bytes, the run keeps checkpoints instead (the state at the start of every
 segment of steps) and the sweep recomputes each segment once more, last segment first. The
 design variables enter through the explicit parts of the pseudo-loads only, contracted with
-each step's adjoint vector ``μ`` inside the compiled sweep; those that change the bodies'
-linear data alone (sections, materials, rigid bodies' masses) through the data gradient of
-the bodies' kinds, formed once a step for all of them and contracted with their ``dD/dp``
-after the sweep (:mod:`morphlab.kernels.ffrf_adjoint`).
+each step's adjoint vector ``μ`` in a compiled kernel of their own, block by block of swept
+steps, in the worker thread beside the sweep of the next block where a core is free
+(:class:`_SharesBeside`); those that change the bodies' linear data alone (sections,
+materials, rigid bodies' masses) through the data gradient of the bodies' kinds, formed once
+a step for all of them and contracted with their ``dD/dp`` after the sweep
+(:mod:`morphlab.kernels.ffrf_adjoint`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import numpy as np
 
 from ..compile import System
 from ..kernels import adjoint as kadj
+from ..kernels.ffrf import scratch
 from ..kernels.ffrf_adjoint import FIELDS, STIFFNESS
 from ..kernels.histories import Histories
 from ..kernels.newton import CONVERGED, PIVOT_REFUSED
@@ -260,18 +263,33 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     RO, RI = _touched(sys0, ps, lumped, stp, like, exact)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
-    a = _sweep_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS), settings.n_steps + 1)
+    a = _sweep_state(sys0, m, settings.n_steps + 1)
+    sh = _shares_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS))
     sc = stp.scheme_of()
     w_old = _old(sc)
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
     N = settings.n_steps
+    pipe = _SharesBeside(sh, stp, sys0.n_dof + sys0.n_con, m, _block(N, sys0, m), overlap)
+
+    def sweep(K, F, hi: int, lo: int) -> None:  # steps hi down to lo of K, block by block
+        while hi >= lo:
+            b = max(lo, hi - pipe.block + 1)
+            MU = pipe.buffer()
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, hi, b, exact, -1,
+                       w_old)
+            pipe.submit(sc, K, MU, hi, b)
+            hi = b - 1
+
     starts = sorted(hook.checkpoints)
     replay = _Replay(hook, settings) if hook.segment is not None else None
     k = N
     while k >= 0:
         if k in hook.python:
             a = _with_terms(a, vjps, sys0, k, k)
-            _python_step(a, hook.python[k], stp, sc0 if k == 0 else sc, k, exact, like, w_old)
+            sck = sc0 if k == 0 else sc
+            MU = pipe.buffer()
+            K = _python_step(a, hook.python[k], stp, sck, k, exact, like, w_old, MU)
+            pipe.submit(sck, K, MU, k, k)
             k -= 1
             continue
         lo = k
@@ -282,7 +300,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
         if K is not None and k < first_checkpoint:
             lo = max(lo, int(K.k0[0]))
             a = _with_terms(a, vjps, sys0, lo, k)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, lo, exact, -1, w_old)
+            sweep(K, F, k, lo)
         else:
             c = max(c for c in starts if c <= k)
             lo = max(lo, c)
@@ -292,18 +310,19 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
                     break
                 k0 = max(lo, int(K.k0[0]))
                 a = _with_terms(a, vjps, sys0, k0, k)
-                kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k0, exact, -1,
-                           w_old)
+                sweep(K, F, k, k0)
                 like = K, F
                 k = k0 - 1
-            # the next segment's record is made of them
+            # the next segment's record is made of them, once the shares have read them
+            pipe.wait()
             release([K for K, _ in pieces], "adjoint")
         k = lo - 1
+    pipe.wait()
     if hook.records:  # the next run's record is made of them (``solve/record.py``)
         release(hook.records, "adjoint")
-    for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in sweep)
-        a.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
-    grad = a.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, sys0, changes)
+    for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in shares)
+        sh.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
+    grad = sh.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, sys0, changes)
     total = _time.perf_counter() - t0
     refined = a.refined[np.isfinite(a.refined)]
     stats = {"n_factorizations": res0.n_factorizations, "segment_steps": hook.segment,
@@ -314,23 +333,80 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     return res0, values, gradients, timing, stats
 
 
-def _sweep_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tuple, n_t: int,
-                 probe: int = 0):
+def _sweep_state(sys0: System, m: int, n_t: int):
     """A :class:`~morphlab.kernels.adjoint.Sweep` at zero for ``m`` responses over ``n_t``
-    time indices: the pseudo-load data ``ps``, the rows its variables touch ``(RO, RI)``, its
-    units ``(UO, UI, UV)`` and its data gradient ``(GD, GO, KS)`` (:func:`_data_gradient`);
-    ``probe``: units of a probe (:func:`_touched`), none in a sweep."""
+    time indices."""
+    n_dof, n_con = sys0.n_dof, sys0.n_con
+    n = n_dof + n_con
+    return kadj.Sweep(*(np.zeros((n_dof, m)) for _ in range(4)), np.zeros((n_con, m)),
+                      *(np.zeros((0, n_dof, m)) for _ in range(3)), np.zeros((0, n_con, m)),
+                      np.zeros(1, dtype=np.int64), *(np.zeros((n, m)) for _ in range(4)),
+                      np.zeros((n_dof, m)), np.zeros((6, sys0.nnz)), np.full(n_t, np.nan),
+                      scratch(sys0.count("flex"), np.zeros(1)))
+
+
+def _shares_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tuple,
+                  probe: int = 0):
+    """The :class:`~morphlab.kernels.adjoint.Shares` at zero for ``m`` responses: the
+    pseudo-load data ``ps``, the rows its variables touch ``(RO, RI)``, its units ``(UO, UI,
+    UV)`` and its data gradient ``(GD, GO, KS)`` (:func:`_data_gradient`); ``probe``: units
+    of a probe (:func:`_touched`), none for a run's shares."""
     n_dof, n_con = sys0.n_dof, sys0.n_con
     n = n_dof + n_con
     n_x = ps.PO.size - 1
     GD, GO, KS = data
-    return kadj.Sweep(*(np.zeros((n_dof, m)) for _ in range(4)), np.zeros((n_con, m)),
-                      *(np.zeros((0, n_dof, m)) for _ in range(3)), np.zeros((0, n_con, m)),
-                      np.zeros(1, dtype=np.int64), ps, *rows, *units, np.zeros((n_x, m)), GD,
-                      GO, *KS, *(np.zeros((n, m)) for _ in range(4)), np.zeros((n_dof, m)),
-                      Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
-                      np.zeros((6, sys0.nnz)), np.full(n_t, np.nan),
-                      np.zeros((probe, n if probe else 0)))
+    return kadj.Shares(ps, *rows, *units, np.zeros((n_x, m)), GD, GO, *KS,
+                       Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
+                       np.zeros((probe, n if probe else 0)))
+
+
+def _block(n_steps: int, sys0: System, m: int) -> int:
+    """Steps per block of the sweep, whose design's shares run beside the next block's
+    sweep (:class:`_SharesBeside`): an eighth of the run, at least 16 steps, and at most
+    what 16 MiB of adjoint vectors hold."""
+    per = (sys0.n_dof + sys0.n_con) * m * 8
+    return max(1, min(max(16, -(-(n_steps + 1) // 8)), (16 << 20) // per))
+
+
+class _SharesBeside:
+    """The design's shares of the swept blocks (:func:`~morphlab.kernels.adjoint.shares`),
+    computed in the worker thread while the sweep goes on (``overlap``), else at once in the
+    caller's: block after block in the order of the sweep, so the gradient adds the same
+    terms in the same order either way. Two buffers of adjoint vectors (``block`` steps each)
+    alternate: the sweep fills one while the shares read the other."""
+
+    def __init__(self, sh, stp, n: int, m: int, block: int, overlap: bool):
+        self.sh, self.stp, self.block, self.overlap = sh, stp, block, overlap
+        self.buffers = [np.zeros((block, n, m)) for _ in range(2)]
+        self.pending: list = [None, None]
+        self.turn = 0
+
+    def buffer(self) -> np.ndarray:
+        """The buffer the sweep fills next, once the shares that read it are done."""
+        work = self.pending[self.turn]
+        if work is not None:
+            work.result()
+            self.pending[self.turn] = None
+        return self.buffers[self.turn]
+
+    def submit(self, sc, K, MU, hi: int, lo: int) -> None:
+        """The shares of steps ``hi`` down to ``lo`` of the record ``K``, whose adjoint
+        vectors the sweep wrote into ``MU`` (the buffer :meth:`buffer` gave)."""
+        stp = self.stp
+        work = Beside(lambda: kadj.shares(self.sh, stp.M, stp.T, sc, K, MU, hi, lo),
+                      self.overlap)
+        work.start()
+        if not work.started:
+            work.result()
+        self.pending[self.turn] = work
+        self.turn ^= 1
+
+    def wait(self) -> None:
+        """Every submitted share done (their errors raised)."""
+        for i, work in enumerate(self.pending):
+            if work is not None:
+                work.result()
+                self.pending[i] = None
 
 
 def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
@@ -374,21 +450,23 @@ def _with_terms(a, vjps, sys0, lo: int, hi: int):
 
 
 def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like,
-                 w_old) -> None:
+                 w_old, MU) -> kadj.Keep:
     """Step ``k`` of the sweep with a factor from Python, on a record of this step
     (:func:`~morphlab.solve.record.solved_step` with the types of ``like``, a record and
     factor arrays of the run or None; ``refine``, ``w_old`` as for the sweep). A compiled
     factor of the kind of the run's goes into the record, and the sweep takes the whole step;
     another (SuperLU's) is solved here, with the same kernels around the solves as the
     sweep's, and the sweep takes the rest of the step. The first compiles no kernel of its
-    own to be called from Python."""
+    own to be called from Python. The step's ``μ`` goes into ``MU[0]``; returns the record,
+    for its design's share."""
     lu = step.factor
     if like is not None and lu.compiled:
         F = lu.arrays()
         if (F.pattern is None) == (like[1].pattern is None):
             K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k, F)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, -1, w_old)
-            return
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1,
+                       w_old)
+            return K
     kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is not None:
@@ -400,18 +478,19 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
     K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, k, k, refine, k, w_old)
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, w_old)
+    return K
 
 
 def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tuple:
     """The residual rows each variable's explicit part can write (``(RO (n_x + 1,), RI)``):
     found by evaluating it once at a random state with random time values and unit weights,
     where every row its parts write is nonzero; none for the variables set in ``skip``
-    (their shares come from the data gradient). The evaluation is a probe in the sweep's own
-    kernel (``a.probe``, :func:`~morphlab.kernels.adjoint._design_share`: one step at time
-    index 0 whose ``μ`` is given, on a record of that step), which takes the types of the run
-    (``stp`` its stepper, ``like`` a record and factor arrays of it, ``refine`` the sweep's):
-    the probe compiles nothing of its own."""
+    (their shares come from the data gradient). The evaluation is a probe in the shares' own
+    kernel (``probe`` rows, :func:`~morphlab.kernels.adjoint._design_share`: one step at time
+    index 0, on a record of that step), which takes the types of the run (``stp`` its
+    stepper, ``like`` a record and factor arrays of it, ``refine`` the sweep's): the probe
+    compiles nothing of its own."""
     from ..compile.system import time_table
     from ..kernels.types import Weights
 
@@ -439,15 +518,15 @@ def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tu
 
     T, ps = noise(T), ps._replace(TL=noise(ps.TL), TN=noise(ps.TN))
     none = _data_gradient(sys0, ps, np.zeros(n_x, dtype=bool), 1)
-    a = _sweep_state(sys0, ps, 1, (np.zeros(n_x + 1, np.int64), np.zeros(0, np.int64)),
-                     (np.arange(probed.size + 1), probed, probed), none, 1,
-                     probe=probed.size)
+    sh = _shares_state(sys0, ps, 1, (np.zeros(n_x + 1, np.int64), np.zeros(0, np.int64)),
+                       (np.arange(probed.size + 1), probed, probed), none,
+                       probe=probed.size)
     sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
     D = np.zeros(sys0.nnz) if refine is None else None
-    K, F = solved_step(like, x, x, D, D, 0)
-    kadj.sweep(stp.M, T, sc, stp.newton.csc, F, K, a, 0, 0, refine, 0, _old(stp.scheme_of()))
+    K, _ = solved_step(like, x, x, D, D, 0)
+    kadj.shares(sh, stp.M, T, sc, K, np.zeros((1, n_dof + n_con, 1)), 0, 0)
     for j, i in enumerate(probed):
-        rows[i] = np.flatnonzero(a.probe[j] != 0.0)
+        rows[i] = np.flatnonzero(sh.probe[j] != 0.0)
     return _offsets(rows)
 
 
