@@ -105,7 +105,8 @@ def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
     weights are passed as an argument (None without an old level, which prunes its code):
     the initial solve's scheme has none, and a sweep given its None would compile a second
     time. A step solved from Python with a compiled factor is solved in the sweep too: the
-    start of a step the caller solves (``_begin``) runs for SuperLU's factors alone."""
+    kernel that starts a step the caller solves (``begin``) is called from Python for
+    SuperLU's factors alone."""
     import numba
 
     import morphlab.sensitivity.adjoint as sa
@@ -119,14 +120,14 @@ def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
         return real(*args)
 
     begun, compiled = [], []
-    real_begin, real_step = sa._begin, sa._python_step
+    real_begin, real_step = sa.kadj.begin, sa._python_step
 
     def step(a, st, *args):
         compiled.append(st.factor.compiled)
         return real_step(a, st, *args)
 
     monkeypatch.setattr(sa.kadj, "sweep", spy)
-    monkeypatch.setattr(sa, "_begin", lambda *args: begun.append(real_begin(*args)))
+    monkeypatch.setattr(sa.kadj, "begin", lambda *args: begun.append(real_begin(*args)))
     monkeypatch.setattr(sa, "_python_step", step)
     ml.sensitivities(build, p0, resp, method="adjoint", scheme=scheme, **RUN)
     assert len(seen) >= 3  # the probe, the recorded steps, the initial solve

@@ -231,13 +231,13 @@ def shares(a, M, T, sc, K, MU, k_hi, k_lo):
         _design_share(a, M, T, sc, MU[k - k_lo], kept_state(K, j + 1), kept_state(K, j), k)
 
 
-@inner
+@kernel
 def begin(Bq, Bv, Ba, Bg, Bl, Hq, Hv, Ha, Hl, h0, zb, mu, sc, k):
     """Add the responses' terms at time index ``k`` to the adjoint state and form ``z̄`` into
     ``zb`` and ``mu`` (which the caller then solves in place with ``J^-T``); the arguments are
-    the fields of :class:`Sweep` of those names. A step solved from Python with SuperLU's
-    factor does the same in NumPy (``morphlab.sensitivity.adjoint._begin``): a Python entry
-    of this kernel would be compiled for that step alone."""
+    the fields of :class:`Sweep` of those names. They are passed, not the whole
+    :class:`Sweep`: Python calls this kernel, and unboxing ``Sweep`` (its pseudo-load data)
+    in the call's wrapper costs about a second of compile."""
     n_dof = Bq.shape[0]
     n_con = Bl.shape[0]
     m = Bq.shape[1]

@@ -467,7 +467,7 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
             kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1,
                        w_old)
             return K
-    _begin(a, sc, k)
+    kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is not None:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
@@ -480,23 +480,6 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
     K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
     kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, w_old)
     return K
-
-
-def _begin(a, sc, k: int) -> None:
-    """:func:`~morphlab.kernels.adjoint.begin` of step ``k`` on the sweep state ``a``, in
-    NumPy: the same operations in the same order, so the same bits (the kernel is the
-    sweep's alone; a Python entry of it would be compiled for SuperLU's steps alone)."""
-    h = k - a.h0[0]
-    if 0 <= h < a.Hq.shape[0]:
-        a.Bq[:] += a.Hq[h]
-        a.Bv[:] += a.Hv[h]
-        a.Ba[:] += a.Ha[h]
-        a.Bl[:] += a.Hl[h]
-    n_dof = a.Bq.shape[0]
-    bh2, gh, ga = sc.pc[5], sc.pc[6], sc.upd[0]
-    a.zb[:n_dof] = a.Ba + bh2 * a.Bq + gh * a.Bv + ga * a.Bg
-    a.zb[n_dof:] = sc.w_new.scale * a.Bl
-    a.mu[:] = a.zb
 
 
 def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tuple:
