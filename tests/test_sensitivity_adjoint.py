@@ -261,7 +261,7 @@ def test_a_new_row_order_while_a_segment_is_recomputed(monkeypatch):
     sizes and patterns. Every recomputed chunk is cut after two steps with a refusal, so that
     each segment runs under several row orders; the gradients stay those of the full record
     within the checkpointed sweep's bound (1e-9 of the scale, the test above)."""
-    import morphlab.sensitivity.adjoint as sa
+    import morphlab.sensitivity.adjoint_record as sa
     from morphlab.kernels.newton import PIVOT_REFUSED
     from morphlab.sensitivity import Adjoint
 
