@@ -104,30 +104,30 @@ def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
     with arguments of the same Numba types, so a run compiles one sweep. The old level's
     weights are passed as an argument (None without an old level, which prunes its code):
     the initial solve's scheme has none, and a sweep given its None would compile a second
-    time. A step solved from Python with a compiled factor is solved in the sweep too: the
-    kernel that starts a step the caller solves (``begin``) is called from Python for
-    SuperLU's factors alone."""
+    time. A step solved from Python with a compiled factor is solved in the sweep too; one
+    with SuperLU's factor is begun by the sweep (``stop``) and solved in between: no kernel
+    of its own is called from Python."""
     import numba
 
     import morphlab.sensitivity.adjoint as sa
 
     build, p0, resp = adjoint_responses("mechanism")
     real = sa.kadj.sweep
-    seen = []
+    seen, seen_args = [], []
 
     def spy(*args):
         seen.append(tuple(numba.typeof(x) for x in args))
+        seen_args.append(args)
         return real(*args)
 
-    begun, compiled = [], []
-    real_begin, real_step = sa.kadj.begin, sa._python_step
+    compiled = []
+    real_step = sa._python_step
 
     def step(a, st, *args):
         compiled.append(st.factor.compiled)
         return real_step(a, st, *args)
 
     monkeypatch.setattr(sa.kadj, "sweep", spy)
-    monkeypatch.setattr(sa.kadj, "begin", lambda *args: begun.append(real_begin(*args)))
     monkeypatch.setattr(sa, "_python_step", step)
     ml.sensitivities(build, p0, resp, method="adjoint", scheme=scheme, **RUN)
     assert len(seen) >= 3  # the probe, the recorded steps, the initial solve
@@ -135,7 +135,9 @@ def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
     # steps solved from Python: the initial solve (SuperLU's factor) and compiled factors
     # after a new row order, which the sweep solves with
     assert True in compiled and False in compiled
-    assert len(begun) == compiled.count(False)
+    stops = [args for args in seen_args if args[12] != -1]  # begun for a solve from Python
+    assert len(stops) == compiled.count(False)
+    assert all(args[11] == -1 and args[8] == args[9] == args[12] for args in stops)
     has_old = scheme == "paper"
     assert isinstance(seen[0][-1], numba.types.NoneType) != has_old
 

@@ -454,14 +454,18 @@ def test_linear_variables_take_real_products(monkeypatch, scheme):
                 assert abs(p0[v] * (a[v] - b[v])) <= tol * scale, (method, r, v, a[v], b[v])
 
 
+#: The pseudo-load data's fields that serve the perturbed path alone.
+PERTURBED_FIELDS = ("MN", "DN", "VN", "D0", "TN", "tn", "pert", "WN")
+
+
 @pytest.mark.parametrize("scheme", ["arnold-bruls", "paper"])
 def test_a_design_of_linear_variables_alone_has_no_perturbed_path(monkeypatch, scheme):
     """When every variable takes the linear path, the pseudo-load data carry no perturbed
-    system (``MN`` None, real working arrays), so the kernels compile none of that path's
-    code. Its gradients equal those with every variable forced through the perturbed path
-    (then a complex system) to the round-off of the recursion (1e-12 of the largest
-    logarithmic sensitivity, as in the test above), for the direct method and the adjoint,
-    both weightings."""
+    path (``MN`` and its data None), so the kernels compile none of that path's code and
+    unbox none of its arrays. Its gradients equal those with every variable forced through
+    the perturbed path (then a complex system) to the round-off of the recursion (1e-12 of
+    the largest logarithmic sensitivity, as in the test above), for the direct method and
+    the adjoint, both weightings."""
     from morphlab.sensitivity import designs, strategies
 
     build, p0, every = responses_for("mechanism")
@@ -486,7 +490,7 @@ def test_a_design_of_linear_variables_alone_has_no_perturbed_path(monkeypatch, s
             (ps,) = made
             if linear:
                 assert ps.MN is None
-                assert all(x.dtype == np.float64 for x in (ps.DN, ps.VN, ps.D0))
+                assert all(getattr(ps, f) is None for f in PERTURBED_FIELDS), ps
             else:
                 assert ps.MN is not None and ps.DN.dtype == np.complex128
         for r in runs[True].gradients:

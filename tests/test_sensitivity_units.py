@@ -41,7 +41,7 @@ def _units(build, p0):
 
 def _column(sys0, ps, i, x):
     """Variable ``i``'s explicit column at the state ``x`` (all weights 1, time index 0)."""
-    c = Column.zeros(sys0.n_dof, sys0.n_con, sys0.count("flex"), ps.DN.dtype)
+    c = Column.zeros(sys0.n_dof, sys0.n_con, sys0.count("flex"), ps)
     explicit_column(ps, sys0.arrays, time_table(sys0, np.zeros(1)), i, x,
                     Weights(*([1.0] * 8)), 0, c)
     return c.R.copy()

@@ -223,21 +223,23 @@ def _design_share(a, M, T, sc, mu, new, old, k):
 @kernel(nogil=True)
 def shares(a, M, T, sc, K, MU, k_hi, k_lo):
     """The design's shares (:func:`_design_share`) of the steps ``k_hi`` down to ``k_lo``
-    recorded in ``K`` (:class:`Keep`) with their adjoint vectors ``MU[k - k_lo]`` (n, m),
-    which :func:`sweep` wrote, into the :class:`Shares` ``a``. Apart from the sweep: nothing
-    of the sweep reads them, so they can run beside the sweep's next steps."""
+    recorded in ``K`` (:class:`Keep`; its states are read, its factor fields may be None)
+    with their adjoint vectors ``MU[k - k_lo]`` (n, m), which :func:`sweep` wrote, into the
+    :class:`Shares` ``a``. ``M``, ``T``: the nominal system and time values; without a
+    perturbed path in ``a.ps``, the bodies' kinds of ``M`` are read alone, and ``T`` may be
+    None. Apart from the sweep: nothing of the sweep reads them, so they can run beside the
+    sweep's next steps."""
     for k in range(k_hi, k_lo - 1, -1):
         j = k - K.k0[0]
         _design_share(a, M, T, sc, MU[k - k_lo], kept_state(K, j + 1), kept_state(K, j), k)
 
 
-@kernel
+@inner
 def begin(Bq, Bv, Ba, Bg, Bl, Hq, Hv, Ha, Hl, h0, zb, mu, sc, k):
     """Add the responses' terms at time index ``k`` to the adjoint state and form ``z̄`` into
-    ``zb`` and ``mu`` (which the caller then solves in place with ``J^-T``); the arguments are
-    the fields of :class:`Sweep` of those names. They are passed, not the whole
-    :class:`Sweep`: Python calls this kernel, and unboxing ``Sweep`` (its pseudo-load data)
-    in the call's wrapper costs about a second of compile."""
+    ``zb`` and ``mu`` (then solved in place with ``J^-T``); the arguments are the fields of
+    :class:`Sweep` of those names. Called by :func:`sweep` alone: a step solved from Python is
+    begun by the sweep too (its ``stop``)."""
     n_dof = Bq.shape[0]
     n_con = Bl.shape[0]
     m = Bq.shape[1]
@@ -289,8 +291,9 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
     True at the initial solve (``k == 0``).
 
     Inlined into :func:`sweep`, its one caller (a step solved from Python goes through
-    :func:`sweep` too, with ``solved``): compiled as a kernel of its own, its code and that of
-    everything it calls would be emitted once more (``_jit``'s docstring)."""
+    :func:`sweep` too, with ``stop`` and ``solved``): compiled as a kernel of its own, its
+    code and that of everything it calls would be emitted once more (``_jit``'s
+    docstring)."""
     n_dof = a.Bq.shape[0]
     n_con = a.Bl.shape[0]
     n = n_dof + n_con
@@ -333,18 +336,20 @@ def finish(a, M, T, sc, csc, Dq, Dv, new, old, k, w_old):
 
 
 @kernel(nogil=True)
-def sweep(M, T, sc, csc, F, K, a, MU, k_hi, k_lo, refine, solved, w_old):
+def sweep(M, T, sc, csc, F, K, a, MU, k_hi, k_lo, refine, solved, stop, w_old):
     """Steps ``k_hi`` down to ``k_lo`` of the backward sweep (module docstring) with the
     factors, fills and states recorded in ``K`` (:class:`Keep`), each step's ``μ`` into
     ``MU[k - k_lo]`` for its design's share (:func:`shares`); ``F``: a factor of the run,
     for the patterns; ``refine``: None for the reuse variant (then the exact variant's code is
-    not compiled), else the exact variant's number of refinement sweeps. ``solved``: the time
-    index of a step whose ``μ`` the caller has solved already (a step solved from Python: its
-    :func:`begin`, solve and, in the exact variant, ``a.mats`` and refinement are the
-    caller's; its factor fields in ``K`` are not read), -1 for none. ``w_old``: the weights of
-    the scheme's old level (``sc.w_old``), None for a scheme without one: then the old level's
-    matrix code is not compiled (Numba prunes a branch on an argument that is None, not on a
-    field of one). Returns True when it reached the initial solve."""
+    not compiled), else the exact variant's number of refinement sweeps. A step whose factor
+    the caller solves (a step solved from Python) takes two calls: the first with ``stop``
+    its time index returns with its ``z̄`` formed in ``a.zb`` and ``a.mu``; the caller solves
+    ``μ`` in place (and, in the exact variant, forms ``a.mats`` and refines), and the second
+    with ``solved`` its time index goes on from there (its factor fields in ``K`` are not
+    read). -1: none. ``w_old``: the weights of the scheme's old level (``sc.w_old``), None
+    for a scheme without one: then the old level's matrix code is not compiled (Numba prunes
+    a branch on an argument that is None, not on a field of one). Returns True when it
+    reached the initial solve."""
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):
@@ -353,6 +358,8 @@ def sweep(M, T, sc, csc, F, K, a, MU, k_hi, k_lo, refine, solved, w_old):
         if k != solved:
             begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc,
                   k)
+            if k == stop:
+                return False
             Fk = kept_factor(K, F, j)
             solve_factored_transposed(a.mu, a.work, Fk)
             if refine is not None:

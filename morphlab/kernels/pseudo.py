@@ -46,10 +46,10 @@ class Pseudo(NamedTuple):
     coordinates; ``PO`` (n_x + 1,), ``PP``: its positions in the flat design data, ``PV`` (real)
     the derivatives there and ``VN`` (``DN``'s dtype) the perturbed design's values, ``D0``
     the nominal's (``DN``'s dtype); ``ML``, ``ZL``, ``TL``, ``tl``: the linear path;
-    ``MN``, ``DN``, ``TN``, ``tn``, ``pert``: the perturbed path (``MN`` None when no
-    variable takes it: then ``DN``, ``VN``, ``D0`` and ``WN`` are real and the kernels compile
-    none of its code); ``forward``: the perturbed path is a forward difference (else a complex
-    step); ``WL``, ``WN``: the bodies' scratch of each path.
+    ``MN``, ``DN``, ``TN``, ``tn``, ``pert``: the perturbed path (all None when no variable
+    takes it, and ``VN``, ``D0`` and ``WN`` too: then the kernels compile none of its code and
+    unbox none of its arrays); ``forward``: the perturbed path is a forward difference (else a
+    complex step); ``WL``, ``WN``: the bodies' scratch of each path.
     """
 
     OFF: np.ndarray
@@ -82,7 +82,8 @@ class Column(NamedTuple):
     (``DN``'s dtype, float64); ``mask`` (n_flex,) bool, all False between calls; ``XN``,
     ``XO``: the new and the old level's state in ``DN``'s dtype
     (:class:`~morphlab.kernels.types.Level`), which the perturbed path evaluates, loaded once
-    a step by :func:`load` for all variables."""
+    a step by :func:`load` for all variables. ``RN``, ``R0``, ``XN``, ``XO`` are None for
+    data without the perturbed path."""
 
     R: np.ndarray
     RN: np.ndarray
@@ -92,17 +93,21 @@ class Column(NamedTuple):
     XO: tuple
 
     @classmethod
-    def zeros(cls, n_dof: int, n_con: int, n_flex: int, dtype) -> "Column":
+    def zeros(cls, n_dof: int, n_con: int, n_flex: int, ps: "Pseudo") -> "Column":
         """A zero column for ``n_dof + n_con`` residual rows, ``n_flex`` flexible
-        coordinates and the perturbed path's ``dtype``."""
+        coordinates and the pseudo-load data ``ps`` (the perturbed path's buffers in its
+        dtype, none without the path)."""
         n = n_dof + n_con
+        mask = np.zeros(n_flex, dtype=np.bool_)
+        if ps.MN is None:
+            return cls(np.zeros(n), None, None, mask, None, None)
+        dtype = ps.DN.dtype
 
         def level():
             return Level(*(np.zeros(n_dof, dtype=dtype) for _ in range(3)),
                          np.zeros(n_con, dtype=dtype))
 
-        return cls(np.zeros(n), np.zeros(n, dtype=dtype), np.zeros(n),
-                   np.zeros(n_flex, dtype=np.bool_), level(), level())
+        return cls(np.zeros(n), np.zeros(n, dtype=dtype), np.zeros(n), mask, level(), level())
 
 
 @inner
@@ -112,7 +117,10 @@ def _any(off):
 
 @inner
 def load(xn, x):
-    """The state ``x`` into the level ``xn`` (of the perturbed path's dtype)."""
+    """The state ``x`` into the level ``xn`` (of the perturbed path's dtype; None: no
+    perturbed path, nothing to load)."""
+    if xn is None:
+        return
     for j in range(x.q.shape[0]):
         xn.q[j] = x.q[j]
         xn.v[j] = x.v[j]

@@ -31,6 +31,7 @@ from ..kernels import adjoint as kadj
 from ..kernels.ffrf import scratch
 from ..kernels.ffrf_adjoint import FIELDS, STIFFNESS
 from ..kernels.pseudo import Column
+from ..kernels.system import KIND_NAMES
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp
 from ..solve.record import release, solved_step, template
@@ -117,7 +118,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
         while hi >= lo:
             b = max(lo, hi - pipe.block + 1)
             MU = pipe.buffer()
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, hi, b, exact, -1,
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, hi, b, exact, -1, -1,
                        w_old)
             pipe.submit(sc, K, MU, hi, b)
             hi = b - 1
@@ -198,8 +199,26 @@ def _shares_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tup
     n_x = ps.PO.size - 1
     GD, GO, KS = data
     return kadj.Shares(ps, *rows, *units, np.zeros((n_x, m)), GD, GO, *KS,
-                       Column.zeros(n_dof, n_con, sys0.count("flex"), ps.DN.dtype),
+                       Column.zeros(n_dof, n_con, sys0.count("flex"), ps),
                        np.zeros((probe, n if probe else 0)))
+
+
+#: The kinds of the system the design's shares read without a perturbed path: the bodies'
+#: (their data gradient and stiffness share).
+_SHARE_KINDS = ("bodies", "flex", "elements")
+
+
+def _share_inputs(ps, M, T, K) -> tuple:
+    """``(M, T, K)`` as the design's shares (:func:`~morphlab.kernels.adjoint.shares`) take
+    them: with the pseudo-load data ``ps`` on the linear path alone, the system ``M`` with the
+    bodies' kinds alone and no time values ``T`` (the nominal residual the rest would serve is
+    the perturbed path's); of the record ``K`` (:class:`~morphlab.kernels.adjoint.Keep`) its
+    states alone. What is None the kernel's Python entry does not unbox: its compile grows
+    with every array it does (about 6 ms an array)."""
+    if ps.MN is None:
+        M = M._replace(**{k: None for k in KIND_NAMES if k not in _SHARE_KINDS})
+        T = None
+    return M, T, K._replace(LU=None, piv=None, Lx=None, Ux=None, Ud=None, D=None)
 
 
 def _block(n_steps: int, sys0: System, m: int) -> int:
@@ -234,9 +253,8 @@ class _SharesBeside:
     def submit(self, sc, K, MU, hi: int, lo: int) -> None:
         """The shares of steps ``hi`` down to ``lo`` of the record ``K``, whose adjoint
         vectors the sweep wrote into ``MU`` (the buffer :meth:`buffer` gave)."""
-        stp = self.stp
-        work = Beside(lambda: kadj.shares(self.sh, stp.M, stp.T, sc, K, MU, hi, lo),
-                      self.overlap)
+        M, T, K = _share_inputs(self.sh.ps, self.stp.M, self.stp.T, K)
+        work = Beside(lambda: kadj.shares(self.sh, M, T, sc, K, MU, hi, lo), self.overlap)
         work.start()
         if not work.started:
             work.result()
@@ -297,19 +315,21 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
     (:func:`~morphlab.solve.record.solved_step` with the types of ``like``, a record and
     factor arrays of the run or None; ``refine``, ``w_old`` as for the sweep). A compiled
     factor of the kind of the run's goes into the record, and the sweep takes the whole step;
-    another (SuperLU's) is solved here, with the same kernels around the solves as the
-    sweep's, and the sweep takes the rest of the step. The first compiles no kernel of its
-    own to be called from Python. The step's ``μ`` goes into ``MU[0]``; returns the record,
-    for its design's share."""
+    another (SuperLU's) is solved here between two calls of the sweep, which begins the step
+    (``stop``) and takes the rest of it (``solved``). Neither compiles a kernel of its own to
+    be called from Python (the exact variant's matrices and refinement with SuperLU's factor
+    aside). The step's ``μ`` goes into ``MU[0]``; returns the record, for its design's
+    share."""
     lu = step.factor
     if like is not None and lu.compiled:
         F = lu.arrays()
         if (F.pattern is None) == (like[1].pattern is None):
             K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k, F)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1,
+            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, -1,
                        w_old)
             return K
-    kadj.begin(a.Bq, a.Bv, a.Ba, a.Bg, a.Bl, a.Hq, a.Hv, a.Ha, a.Hl, a.h0, a.zb, a.mu, sc, k)
+    K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, k, w_old)
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is not None:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
@@ -319,8 +339,7 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
                 a.mu[:] += np.asarray(lu.solve_transposed(a.r), dtype=float)
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
-    K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, w_old)
+    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, -1, w_old)
     return K
 
 
@@ -366,7 +385,8 @@ def _touched(sys0: System, ps, skip: np.ndarray | None, stp, like, refine) -> tu
     sc = stp.scheme_of()._replace(w_new=Weights(*([1.0] * 8)), has_old=False)
     D = np.zeros(sys0.nnz) if refine is None else None
     K, _ = solved_step(like, x, x, D, D, 0)
-    kadj.shares(sh, stp.M, T, sc, K, np.zeros((1, n_dof + n_con, 1)), 0, 0)
+    M, T, K = _share_inputs(sh.ps, stp.M, T, K)
+    kadj.shares(sh, M, T, sc, K, np.zeros((1, n_dof + n_con, 1)), 0, 0)
     for j, i in enumerate(probed):
         rows[i] = np.flatnonzero(sh.probe[j] != 0.0)
     return _offsets(rows)

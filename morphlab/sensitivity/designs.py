@@ -346,9 +346,10 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     # the perturbed path in complex arrays for both perturbations: a forward difference
     # evaluates its perturbed residual in complex arithmetic with zero imaginary parts, so it
     # shares every compiled kernel with the complex step (the same types) instead of compiling
-    # its own; real, and no system (``MN`` None), when no variable takes the path: then the
-    # kernels compile none of its code (:func:`~morphlab.kernels.pseudo.explicit`)
-    dt = np.dtype(np.complex128 if need else np.float64)
+    # its own; none of its data (``MN`` and the rest None) when no variable takes the path:
+    # then the kernels compile none of its code (:func:`~morphlab.kernels.pseudo.explicit`)
+    # and their Python entries unbox none of its arrays
+    dt = np.dtype(np.complex128)
     A = sys0.arrays
     OFF, IDX, _, _ = pack_parts(A, lin_parts)
     OFFN, IDXN, _, _ = pack_parts(A, nl_parts)
@@ -361,8 +362,7 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     PO[1:] = np.cumsum([ch.positions.size for ch in chs])
     PP = np.concatenate([ch.positions for ch in chs] + [np.zeros(0, np.int64)])
     PV = np.concatenate([ch.derivative for ch in chs] + [np.zeros(0)])
-    VN = np.concatenate([np.asarray(ch.values) for ch in chs] + [np.zeros(0)])
-    VN = VN.astype(dt) if need else np.ascontiguousarray(VN.real)  # unread without the path
+    VN = np.concatenate([np.asarray(ch.values) for ch in chs] + [np.zeros(0)]).astype(dt)
     D0 = sys0.design.astype(dt)[PP]
     # the linear path: the linear design fields as views of a zero vector
     ZL = np.zeros(sys0.design.shape)
@@ -379,6 +379,9 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
         MN = MN._replace(**{k: None for k in KIND_NAMES if k not in need})
     TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True, kinds=need)
     n_flex = sys0.count("flex")
+    pert = np.asarray(pert, dtype=np.complex128)
+    WL, WN = scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt))
+    if not need:
+        VN = D0 = DN = TN = tn = pert = WN = None
     return Pseudo(OFF, OFFN, IDX, FOFF, FIDX, PO, PP, PV, VN, D0, ML, ZL, TL, tl, MN, DN, TN,
-                  tn, np.asarray(pert, dtype=np.complex128),
-                  forward, scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt)))
+                  tn, pert, forward, WL, WN)

@@ -77,7 +77,7 @@ class DirectHook(StepHook):
                         np.zeros((n_x, 2, n_dof)), self.full["lam"], ps,
                         np.zeros((n, n_x)), np.zeros((n, n_x)), np.zeros((n, n_x)),
                         np.zeros((n, n_x)),
-                        Column.zeros(n_dof, n_con, system.count("flex"), ps.DN.dtype),
+                        Column.zeros(n_dof, n_con, system.count("flex"), ps),
                         np.zeros((6, system.nnz)), np.full(n_steps + 1, np.nan),
                         Csc(system.indices, system.indptr))
         self.record = None

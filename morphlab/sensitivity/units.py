@@ -103,7 +103,8 @@ def share_units(ps: Pseudo, RO: np.ndarray, RI: np.ndarray, skip=None) -> tuple:
         OFF=np.concatenate([ps.OFF, np.array(off, dtype=np.int64)]),
         OFFN=np.concatenate([ps.OFFN, empty]), IDX=np.concatenate([ps.IDX] + idx),
         FOFF=FOFF, FIDX=np.concatenate([ps.FIDX] + fidx), PO=PO, PP=ps.PP[order],
-        PV=ps.PV[order], VN=ps.VN[order], D0=ps.D0[order],
-        tl=np.concatenate([ps.tl, np.zeros(n_g, np.int64)]),
-        tn=np.concatenate([ps.tn, np.zeros(n_g, np.int64)]),
-        pert=np.concatenate([ps.pert, np.zeros(n_g, ps.pert.dtype)])), UO, UI, UV
+        PV=ps.PV[order], tl=np.concatenate([ps.tl, np.zeros(n_g, np.int64)]),
+        **({} if ps.MN is None else  # the perturbed path's data, where it has the path
+           {"VN": ps.VN[order], "D0": ps.D0[order],
+            "tn": np.concatenate([ps.tn, np.zeros(n_g, np.int64)]),
+            "pert": np.concatenate([ps.pert, np.zeros(n_g, ps.pert.dtype)])})), UO, UI, UV
