@@ -70,8 +70,8 @@ class Sweep(NamedTuple):
     m), ``Hl`` (n_t, n_con, m) (empty: none), their row ``k - h0[0]`` time index ``k``;
     buffers ``zb``, ``mu``, ``r``, ``work`` (n, m), ``gb`` (n_dof, m), ``mats`` (6, nnz),
     ``refined`` (n_t,) and the bodies' scratch ``W`` (:func:`~morphlab.kernels.ffrf.scratch`,
-    real). The design's shares are not here (:class:`Shares`): the sweep compiles without
-    the pseudo-load data's types."""
+    real; None where the sweep forms no matrix). The design's shares are not here
+    (:class:`Shares`): the sweep compiles without the pseudo-load data's types."""
 
     Bq: np.ndarray
     Bv: np.ndarray
@@ -349,7 +349,8 @@ def sweep(M, T, sc, csc, F, K, a, MU, k_hi, k_lo, refine, solved, stop, w_old):
     read). -1: none. ``w_old``: the weights of the scheme's old level (``sc.w_old``), None
     for a scheme without one: then the old level's matrix code is not compiled (Numba prunes
     a branch on an argument that is None, not on a field of one). Returns True when it
-    reached the initial solve."""
+    reached the initial solve. ``M``, ``T``: the system and time values, read only to form
+    matrices (the exact variant, the old level's share), else None."""
     n = a.mu.shape[0]
     m = a.mu.shape[1]
     for k in range(k_hi, k_lo - 1, -1):

@@ -106,10 +106,11 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     RO, RI = _touched(sys0, ps, lumped, stp, like, exact)
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
-    a = _sweep_state(sys0, m, settings.n_steps + 1)
-    sh = _shares_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS))
     sc = stp.scheme_of()
     w_old = _old(sc)
+    M, T = _sweep_inputs(stp, exact, w_old)
+    a = _sweep_state(sys0, m, settings.n_steps + 1, M is not None)
+    sh = _shares_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS))
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
     N = settings.n_steps
     pipe = _SharesBeside(sh, stp, sys0.n_dof + sys0.n_con, m, _block(N, sys0, m), overlap)
@@ -118,8 +119,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
         while hi >= lo:
             b = max(lo, hi - pipe.block + 1)
             MU = pipe.buffer()
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, hi, b, exact, -1, -1,
-                       w_old)
+            kadj.sweep(M, T, sc, stp.newton.csc, F, K, a, MU, hi, b, exact, -1, -1, w_old)
             pipe.submit(sc, K, MU, hi, b)
             hi = b - 1
 
@@ -176,16 +176,25 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     return res0, values, gradients, timing, stats
 
 
-def _sweep_state(sys0: System, m: int, n_t: int):
+def _sweep_state(sys0: System, m: int, n_t: int, matrices: bool):
     """A :class:`~morphlab.kernels.adjoint.Sweep` at zero for ``m`` responses over ``n_t``
-    time indices."""
+    time indices; the bodies' scratch only where the sweep forms ``matrices``."""
     n_dof, n_con = sys0.n_dof, sys0.n_con
     n = n_dof + n_con
     return kadj.Sweep(*(np.zeros((n_dof, m)) for _ in range(4)), np.zeros((n_con, m)),
                       *(np.zeros((0, n_dof, m)) for _ in range(3)), np.zeros((0, n_con, m)),
                       np.zeros(1, dtype=np.int64), *(np.zeros((n, m)) for _ in range(4)),
                       np.zeros((n_dof, m)), np.zeros((6, sys0.nnz)), np.full(n_t, np.nan),
-                      scratch(sys0.count("flex"), np.zeros(1)))
+                      scratch(sys0.count("flex"), np.zeros(1)) if matrices else None)
+
+
+def _sweep_inputs(stp, refine: int | None, w_old) -> tuple:
+    """``(M, T)``, the system and time values of the stepper ``stp``, as the sweep takes
+    them: None where it forms no matrix (the reuse variant, ``refine`` None, without an old
+    level's share, ``w_old`` None): its Python entry then unboxes neither (``_share_inputs``)."""
+    if refine is None and w_old is None:
+        return None, None
+    return stp.M, stp.T
 
 
 def _shares_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tuple,
@@ -321,15 +330,15 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
     aside). The step's ``μ`` goes into ``MU[0]``; returns the record, for its design's
     share."""
     lu = step.factor
+    M, T = _sweep_inputs(stp, refine, w_old)
     if like is not None and lu.compiled:
         F = lu.arrays()
         if (F.pattern is None) == (like[1].pattern is None):
             K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k, F)
-            kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, -1,
-                       w_old)
+            kadj.sweep(M, T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, -1, w_old)
             return K
     K, F = solved_step(like, step.new, step.old, step.Dq, step.Dv, k)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, k, w_old)
+    kadj.sweep(M, T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, -1, k, w_old)
     a.mu[:] = np.asarray(lu.solve_transposed(a.mu), dtype=float)
     if refine is not None:
         kadj.exact_matrices(a, stp.M, stp.T, sc, step.new, k)
@@ -339,7 +348,7 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
                 a.mu[:] += np.asarray(lu.solve_transposed(a.r), dtype=float)
             rr, bb = kadj.refinement_residual(a, stp.newton.csc)
             a.refined[k] = rr / max(bb, 1e-300)
-    kadj.sweep(stp.M, stp.T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, -1, w_old)
+    kadj.sweep(M, T, sc, stp.newton.csc, F, K, a, MU, k, k, refine, k, -1, w_old)
     return K
 
 
