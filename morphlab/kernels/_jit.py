@@ -32,6 +32,14 @@ one caller of a large closure; a second entry over the same closure (a Python-ca
 of a step the compiled loop takes) costs about as much as the closure's emission, not as
 little as its wrapper.
 
+That wrapper has its own price: it unboxes every array of the arguments (in nested tuples
+too) and passes each on as seven or more scalars, about 6 ms of compile an array (a kernel
+taking a tuple of 120 arrays: 0.8 CPU-s with its wrapper, 0.1 without). So a kernel Python
+calls is given what it reads, and None for the rest: the design's shares get the system with
+the bodies' kinds alone and no perturbed path's data where no variable takes that path, the
+adjoint's sweep no system where it forms no matrix
+(``morphlab.sensitivity.adjoint._share_inputs``, ``_sweep_inputs``).
+
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
 compiles a signature of a kernel holding a lock file for that signature, and a second
