@@ -142,19 +142,21 @@ def test_every_sweep_of_a_run_takes_one_signature(monkeypatch, scheme):
     assert isinstance(seen[0][-1], numba.types.NoneType) != has_old
 
 
-def test_the_adjoint_entries_are_given_only_what_they_read(monkeypatch):
+def test_the_sensitivity_entries_are_given_only_what_they_read(monkeypatch):
     """A kernel Python calls unboxes every array it is given, about 6 ms of compile each
     (``morphlab/kernels/_jit.py``). With linear variables alone (no perturbed path), the
-    reuse variant and no old level: the shares get of the system the bodies' kinds alone, no
-    time values and the record's states; the sweep no system, time values or bodies' scratch;
-    the pseudo-load data none of the perturbed path's. The gradients stay the direct
-    method's (1e-10, as above). Fails if any of them is passed whole again."""
+    reuse variant and no old level: the adjoint's shares get of the system the bodies' kinds
+    alone, no time values and the record's states; its sweep and the direct method's chunk no
+    system, time values, old level's weights or bodies' scratch; the pseudo-load data none of
+    the perturbed path's. The gradients of the two methods agree as above (1e-10). Fails if
+    any of them is passed whole again."""
     import morphlab.sensitivity.adjoint as sa
+    import morphlab.sensitivity.direct as sd
 
     build, p0, resp = adjoint_responses("mechanism")
     chosen = ["E", "t", "m_crank", "M"]  # a material, a section, a mass, a load: linear
-    calls = {"sweep": [], "shares": []}
-    real = {k: getattr(sa.kadj, k) for k in calls}
+    calls = {"sweep": [], "shares": [], "chunk": []}
+    real = {"sweep": sa.kadj.sweep, "shares": sa.kadj.shares, "chunk": sd.chunk}
 
     def spy(name):
         def call(*args):
@@ -162,26 +164,29 @@ def test_the_adjoint_entries_are_given_only_what_they_read(monkeypatch):
             return real[name](*args)
         return call
 
-    for k in calls:
+    for k in ("sweep", "shares"):
         monkeypatch.setattr(sa.kadj, k, spy(k))
+    monkeypatch.setattr(sd, "chunk", spy("chunk"))
     a = ml.sensitivities(build, p0, resp, method="adjoint", variables=chosen, **RUN)
     d = ml.sensitivities(build, p0, resp, method="direct", variables=chosen, **RUN)
     for r in resp:
         scale = max(abs(g) for g in d.gradients[r].values())
         for v in chosen:
             assert abs(a.gradients[r][v] - d.gradients[r][v]) <= 1e-10 * scale, (r, v)
-    assert calls["sweep"] and calls["shares"]
+    assert all(calls.values())
     bodies = set(sa._SHARE_KINDS)
+    perturbed = ("MN", "DN", "VN", "D0", "TN", "tn", "pert", "WN")
     for sh, M, T, _sc, K, *_ in calls["shares"]:
-        ps = sh.ps
-        assert all(getattr(ps, f) is None for f in ("MN", "DN", "VN", "D0", "TN", "tn",
-                                                    "pert", "WN"))
+        assert all(getattr(sh.ps, f) is None for f in perturbed)
         assert all(getattr(sh.column, f) is None for f in ("RN", "R0", "XN", "XO"))
         assert {k for k in M._fields if k != "gravity" and getattr(M, k) is not None} <= bodies
         assert T is None
         assert all(getattr(K, f) is None for f in ("LU", "piv", "Lx", "Ux", "Ud", "D"))
     for M, T, *_, st, _MU in (c[:8] for c in calls["sweep"]):
         assert M is None and T is None and st.W is None
+    for dd, M, T, *rest in calls["chunk"]:
+        assert M is None and T is None and rest[-1] is None
+        assert all(getattr(dd.ps, f) is None for f in perturbed)
 
 
 def test_adjoint_equals_the_whole_run_complex_step():

@@ -37,8 +37,9 @@ too) and passes each on as seven or more scalars, about 6 ms of compile an array
 taking a tuple of 120 arrays: 0.8 CPU-s with its wrapper, 0.1 without). So a kernel Python
 calls is given what it reads, and None for the rest: the design's shares get the system with
 the bodies' kinds alone and no perturbed path's data where no variable takes that path, the
-adjoint's sweep no system where it forms no matrix
-(``morphlab.sensitivity.adjoint._share_inputs``, ``_sweep_inputs``).
+adjoint's sweep and the direct method's chunk no system where they form no matrix
+(``morphlab.sensitivity.adjoint._share_inputs``, ``_sweep_inputs``;
+``morphlab.sensitivity.direct``).
 
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process

@@ -151,12 +151,14 @@ def store(DQ, DV, DA, DG, DL, sc, x, k):
 
 
 @inlined
-def prepare(d, M, T, sc, Dq, Dv, new, old, k, refine):
+def prepare(d, M, T, sc, Dq, Dv, new, old, k, refine, w_old):
     """The right-hand sides of step ``k`` (from the state ``old`` to ``new``) into ``d.rhs``
     and ``d.x`` (which the caller then solves in place), with the split matrices of the
     variant (module docstring) in ``d.mats``: ``Dq``, ``Dv`` (nnz,) those of the step's last
     Newton fill (the reuse variant's). ``refine``: None for the reuse variant (then the exact
     variant's code is not compiled), else the exact variant's number of refinement sweeps.
+    ``w_old``: the weights of the scheme's old level, None for a scheme without one (then the
+    old level's matrix code is not compiled; ``morphlab.solve.scheme.old_weights``).
 
     Inlined into :func:`chunk`, its one caller (a step solved from Python takes its
     right-hand sides from :func:`chunk` too, with ``rhs_only``): compiled as a kernel of its
@@ -173,8 +175,8 @@ def prepare(d, M, T, sc, Dq, Dv, new, old, k, refine):
         bh2, gh = sc.pc[5], sc.pc[6]
         for p in range(D.shape[1]):
             D[0, p] = D[0, p] + bh2 * D[1, p] + gh * D[2, p]  # J* for the refinement
-    if sc.has_old:
-        matrix(M, old, sc.w_old, T, np.int64(0), k - 1, C, D[3:6], d.ps.WL)
+    if w_old is not None and sc.has_old:
+        matrix(M, old, w_old, T, np.int64(0), k - 1, C, D[3:6], d.ps.WL)
     rhs(d, M, T, sc, D, new, old, k)
     for r in range(d.x.shape[0]):
         for i in range(d.x.shape[1]):
@@ -188,19 +190,21 @@ def refinement_residual(d):
 
 
 @kernel(nogil=True)
-def chunk(d, M, T, sc, F, K, k0, k1, refine, rhs_only):
+def chunk(d, M, T, sc, F, K, k0, k1, refine, rhs_only, w_old):
     """The sensitivities of the recorded steps ``k0 .. k1 - 1`` (``K``:
     :class:`~morphlab.kernels.adjoint.Keep`; ``F``: a factor of the run, for the patterns):
     right-hand sides, one solve with the step's factors for every variable, refinement (exact
-    variant) and the update, step by step (module docstring). ``refine`` as for
+    variant) and the update, step by step (module docstring). ``refine``, ``w_old`` as for
     :func:`prepare`. ``rhs_only``: the right-hand sides of step ``k0`` alone, into ``d.rhs``
     and ``d.x`` (a step solved from Python: the caller solves, refines and stores it; the
-    factor fields of ``K`` are not read)."""
+    factor fields of ``K`` are not read). ``M``, ``T``: the system and time values, read to
+    form matrices (the exact variant, the old level's share) and by the perturbed path's
+    forward difference alone; else None."""
     x = d.x
     for k in range(k0, k1):
         j = k - K.k0[0]
         new, old = kept_state(K, j + 1), kept_state(K, j)
-        prepare(d, M, T, sc, K.D[j, 0], K.D[j, 1], new, old, k, refine)
+        prepare(d, M, T, sc, K.D[j, 0], K.D[j, 1], new, old, k, refine, w_old)
         if rhs_only:
             return
         Fk = kept_factor(K, F, j)

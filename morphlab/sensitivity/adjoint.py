@@ -35,7 +35,7 @@ from ..kernels.system import KIND_NAMES
 from ..kernels.types import Level
 from ..results.gradients import ResponseVJP, response_vjp
 from ..solve.record import release, solved_step, template
-from ..solve.scheme import kernel_scheme
+from ..solve.scheme import kernel_scheme, old_weights
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint_record import AdjointHook, _PythonStep, _Replay
@@ -107,7 +107,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     PO, PP, PV = ps.PO, ps.PP, ps.PV
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     sc = stp.scheme_of()
-    w_old = _old(sc)
+    w_old = old_weights(sc)
     M, T = _sweep_inputs(stp, exact, w_old)
     a = _sweep_state(sys0, m, settings.n_steps + 1, M is not None)
     sh = _shares_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS))
@@ -303,13 +303,6 @@ def _data_gradient(sys0: System, ps, lumped: np.ndarray, m: int) -> tuple:
     K = (KO, np.array(KX, dtype=np.int64), np.concatenate(KE).astype(np.int64),
          np.concatenate(KV))
     return np.zeros((sys0.design.size if lumped.any() else 0, m)), GO, K
-
-
-def _old(sc):
-    """The sweep's ``w_old``: the weights of the scheme's old level, None without one. Every
-    sweep of a run takes the regular steps' (``stp.scheme_of()``), also at the initial solve
-    and in the probe, which end before the old level's share: one compiled signature."""
-    return sc.w_old if sc.has_old else None
 
 
 def _with_terms(a, vjps, sys0, lo: int, hi: int):

@@ -35,7 +35,7 @@ from ..kernels.newton import Csc
 from ..kernels.pseudo import Column, Pseudo
 from ..solve.record import fits as _fits
 from ..solve.record import keep_record, release, solved_step, template
-from ..solve.scheme import kernel_scheme
+from ..solve.scheme import kernel_scheme, old_weights
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
 from .histories import HISTORIES, PerturbedResult
@@ -90,6 +90,12 @@ class DirectHook(StepHook):
         self.sc = stepper.scheme_of()
         self.sc0 = kernel_scheme(stepper.init_coef, stepper.scale, stepper.b0, stepper.b1,
                                  split=self.rows == 3)
+        self.w_old = old_weights(self.sc)
+        # the system and time values as the chunk takes them: None where it forms no matrix
+        # (the reuse variant without an old level's share) and has no perturbed path; its
+        # Python entry then unboxes neither (``morphlab.kernels._jit``)
+        bare = self.refine is None and self.w_old is None and self.d.ps.MN is None
+        self.M, self.T = (None, None) if bare else (stepper.M, stepper.T)
 
     def python_step(self, k: int, out) -> None:
         """Step ``k`` solved from Python: its sensitivities (:meth:`solve_pending`) once the
@@ -128,7 +134,7 @@ class DirectHook(StepHook):
                 if self.factor_arrays is None else (self.record, self.factor_arrays))
         for k, sc, new, old, Dq, Dv, lu in self.pending:
             K, F = solved_step(like, new, old, Dq, Dv, k)
-            chunk(d, stp.M, stp.T, sc, F, K, k, k + 1, self.refine, True)
+            chunk(d, self.M, self.T, sc, F, K, k, k + 1, self.refine, True, self.w_old)
             x = np.ascontiguousarray(lu.solve(d.rhs), dtype=float)
             if self.refine:  # the exact variant, refined
                 for _ in range(self.refine):
@@ -159,8 +165,8 @@ class DirectHook(StepHook):
         self.factor_arrays = stp.newton.factorization.loop_arrays()
         self.solve_pending()  # the steps before k0 solved from Python
         t0 = _time.perf_counter()
-        chunk(self.d, stp.M, stp.T, self.sc, self.factor_arrays, self.record, k0, k1,
-              self.refine, False)
+        chunk(self.d, self.M, self.T, self.sc, self.factor_arrays, self.record, k0, k1,
+              self.refine, False, self.w_old)
         self.seconds += _time.perf_counter() - t0
 
 

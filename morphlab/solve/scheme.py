@@ -160,6 +160,15 @@ def kernel_scheme(coef: StepCoefficients, scale: float, b0: float, b1: float,
                   weights(coef.old, scale, b0, b1), coef.old is not None, np.array(C))
 
 
+def old_weights(sc: Scheme):
+    """The weights of the old level of the kernels' scheme ``sc``, None for a scheme without
+    one. The sensitivity kernels take them as an argument and prune the old level's matrix on
+    None (Numba prunes a branch on an argument that is None, not on a field of one); every
+    call of a run passes the regular steps' (``Stepper.scheme_of()``), also at the initial
+    solve, which has no old level: one compiled signature."""
+    return sc.w_old if sc.has_old else None
+
+
 def newmark_predict(coef: StepCoefficients, q, v, a, g):
     """Predictors ``(q_hat, v_hat)`` of arrays of any one shape (states (n,), sensitivity
     columns (n, n_x)): :func:`morphlab.kernels.newmark.predict`."""
