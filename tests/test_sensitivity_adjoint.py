@@ -15,6 +15,7 @@ from test_sensitivity_direct import CASES, RUN, responses_for
 
 import morphlab as ml
 from morphlab.results.gradients import ResponseVJP
+from morphlab.sensitivity.units import BODY_KINDS
 
 RUN_STEPS = round(RUN["t_end"] / RUN["dt"])
 
@@ -174,7 +175,7 @@ def test_the_sensitivity_entries_are_given_only_what_they_read(monkeypatch):
         for v in chosen:
             assert abs(a.gradients[r][v] - d.gradients[r][v]) <= 1e-10 * scale, (r, v)
     assert all(calls.values())
-    bodies = set(sa._SHARE_KINDS)
+    bodies = set(BODY_KINDS)
     perturbed = ("MN", "DN", "VN", "D0", "TN", "tn", "pert", "WN")
     for sh, M, T, _sc, K, *_ in calls["shares"]:
         assert all(getattr(sh.ps, f) is None for f in perturbed)

@@ -38,8 +38,8 @@ taking a tuple of 120 arrays: 0.8 CPU-s with its wrapper, 0.1 without). So a ker
 calls is given what it reads, and None for the rest: the design's shares get the system with
 the bodies' kinds alone and no perturbed path's data where no variable takes that path, the
 adjoint's sweep and the direct method's chunk no system where they form no matrix
-(``morphlab.sensitivity.adjoint._share_inputs``, ``_sweep_inputs``;
-``morphlab.sensitivity.direct``).
+(``morphlab.sensitivity.adjoint._share_inputs``, ``morphlab.sensitivity.designs.
+system_read``).
 
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process

@@ -40,8 +40,9 @@ from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint_record import AdjointHook, _PythonStep, _Replay
 from .beside import Beside
+from .designs import system_read
 from .histories import to_store
-from .units import bodies_linear, share_units
+from .units import BODY_KINDS, bodies_linear, share_units
 
 
 def _terms(vjps: list[ResponseVJP], ns: np.ndarray, s: System) -> tuple:
@@ -108,7 +109,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
     ps, UO, UI, UV = share_units(ps, RO, RI, skip=lumped)
     sc = stp.scheme_of()
     w_old = old_weights(sc)
-    M, T = _sweep_inputs(stp, exact, w_old)
+    M, T = system_read(stp, exact, w_old)
     a = _sweep_state(sys0, m, settings.n_steps + 1, M is not None)
     sh = _shares_state(sys0, ps, m, (RO, RI), (UO, UI, UV), (GD, GO, KS))
     sc0 = kernel_scheme(stp.init_coef, stp.scale, stp.b0, stp.b1, split=hook.rows == 3)
@@ -188,15 +189,6 @@ def _sweep_state(sys0: System, m: int, n_t: int, matrices: bool):
                       scratch(sys0.count("flex"), np.zeros(1)) if matrices else None)
 
 
-def _sweep_inputs(stp, refine: int | None, w_old) -> tuple:
-    """``(M, T)``, the system and time values of the stepper ``stp``, as the sweep takes
-    them: None where it forms no matrix (the reuse variant, ``refine`` None, without an old
-    level's share, ``w_old`` None): its Python entry then unboxes neither (``_share_inputs``)."""
-    if refine is None and w_old is None:
-        return None, None
-    return stp.M, stp.T
-
-
 def _shares_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tuple,
                   probe: int = 0):
     """The :class:`~morphlab.kernels.adjoint.Shares` at zero for ``m`` responses: the
@@ -212,11 +204,6 @@ def _shares_state(sys0: System, ps, m: int, rows: tuple, units: tuple, data: tup
                        np.zeros((probe, n if probe else 0)))
 
 
-#: The kinds of the system the design's shares read without a perturbed path: the bodies'
-#: (their data gradient and stiffness share).
-_SHARE_KINDS = ("bodies", "flex", "elements")
-
-
 def _share_inputs(ps, M, T, K) -> tuple:
     """``(M, T, K)`` as the design's shares (:func:`~morphlab.kernels.adjoint.shares`) take
     them: with the pseudo-load data ``ps`` on the linear path alone, the system ``M`` with the
@@ -225,7 +212,7 @@ def _share_inputs(ps, M, T, K) -> tuple:
     states alone. What is None the kernel's Python entry does not unbox: its compile grows
     with every array it does (about 6 ms an array)."""
     if ps.MN is None:
-        M = M._replace(**{k: None for k in KIND_NAMES if k not in _SHARE_KINDS})
+        M = M._replace(**{k: None for k in KIND_NAMES if k not in BODY_KINDS})
         T = None
     return M, T, K._replace(LU=None, piv=None, Lx=None, Ux=None, Ud=None, D=None)
 
@@ -323,7 +310,7 @@ def _python_step(a, step: _PythonStep, stp, sc, k: int, refine: int | None, like
     aside). The step's ``μ`` goes into ``MU[0]``; returns the record, for its design's
     share."""
     lu = step.factor
-    M, T = _sweep_inputs(stp, refine, w_old)
+    M, T = system_read(stp, refine, w_old)
     if like is not None and lu.compiled:
         F = lu.arrays()
         if (F.pattern is None) == (like[1].pattern is None):

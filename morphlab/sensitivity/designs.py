@@ -325,6 +325,17 @@ def _tables(sys0: System, T0: Times, per_variable: list, dtype, add_nominal: boo
     return Times(*out), index
 
 
+def system_read(stepper, refine: int | None, w_old, ps: Pseudo | None = None) -> tuple:
+    """``(M, T)``, the system and time values of ``stepper``, as a sensitivity kernel called
+    from Python takes them: None where it reads neither, as it forms no matrix (the reuse
+    variant, ``refine`` None, without an old level's share, ``w_old`` None) and evaluates no
+    perturbed path of ``ps`` (None: the kernel evaluates none, as the adjoint's sweep). Its
+    Python entry then unboxes neither (about 6 ms of compile an array: ``kernels/_jit.py``)."""
+    if refine is None and w_old is None and (ps is None or ps.MN is None):
+        return None, None
+    return stepper.M, stepper.T
+
+
 def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) -> Pseudo:
     """The pseudo-load data of the changes ``chs`` (:class:`~morphlab.kernels.pseudo.Pseudo`):
     the linear path in real arithmetic, the perturbed path by complex step (``pert`` complex)
@@ -343,13 +354,6 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
         fparts.append(sorted(flex))
         lin_time.append((ch.time, 1.0) if ch.time is not None else None)
         nl_time.append((ch.time, pert[len(nl_time)]) if ch.time is not None else None)
-    # the perturbed path in complex arrays for both perturbations: a forward difference
-    # evaluates its perturbed residual in complex arithmetic with zero imaginary parts, so it
-    # shares every compiled kernel with the complex step (the same types) instead of compiling
-    # its own; none of its data (``MN`` and the rest None) when no variable takes the path:
-    # then the kernels compile none of its code (:func:`~morphlab.kernels.pseudo.explicit`)
-    # and their Python entries unbox none of its arrays
-    dt = np.dtype(np.complex128)
     A = sys0.arrays
     OFF, IDX, _, _ = pack_parts(A, lin_parts)
     OFFN, IDXN, _, _ = pack_parts(A, nl_parts)
@@ -362,26 +366,31 @@ def pseudo_data(sys0: System, chs: list[Change], pert: np.ndarray, T0: Times) ->
     PO[1:] = np.cumsum([ch.positions.size for ch in chs])
     PP = np.concatenate([ch.positions for ch in chs] + [np.zeros(0, np.int64)])
     PV = np.concatenate([ch.derivative for ch in chs] + [np.zeros(0)])
-    VN = np.concatenate([np.asarray(ch.values) for ch in chs] + [np.zeros(0)]).astype(dt)
-    D0 = sys0.design.astype(dt)[PP]
+    n_flex = sys0.count("flex")
     # the linear path: the linear design fields as views of a zero vector
     ZL = np.zeros(sys0.design.shape)
     ML = views(A, ZL, {(k, f.name) for k, kind in KINDS.items() for f in kind.fields
                        if f.linear and f.role == DESIGN})
     TL, tl = _tables(sys0, T0, lin_time, np.float64, add_nominal=False)
-    # the perturbed path: the kinds it evaluates, as views of a copy of the design data
-    DN = sys0.design.astype(dt)
-    if "bodies" in need:
-        need.update(("flex", "elements"))
-    MN = None
+    WL = scratch(n_flex, np.zeros(1))
+    # the perturbed path: the kinds it evaluates, as views of a copy of the design data, in
+    # complex arrays for both perturbations (a forward difference evaluates its perturbed
+    # residual in complex arithmetic with zero imaginary parts, so it shares every compiled
+    # kernel with the complex step instead of compiling its own); none of its data when no
+    # variable takes the path: then the kernels compile none of its code
+    # (:func:`~morphlab.kernels.pseudo.explicit`) and their Python entries unbox none of it
+    VN = D0 = MN = DN = TN = tn = WN = None
     if need:
+        dt = np.dtype(np.complex128)
+        VN = np.concatenate([np.asarray(ch.values) for ch in chs] + [np.zeros(0)]).astype(dt)
+        DN = sys0.design.astype(dt)
+        D0 = DN[PP]
+        if "bodies" in need:
+            need.update(("flex", "elements"))
         MN = views(sys0.arrays_as(dt), DN)
         MN = MN._replace(**{k: None for k in KIND_NAMES if k not in need})
-    TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True, kinds=need)
-    n_flex = sys0.count("flex")
-    pert = np.asarray(pert, dtype=np.complex128)
-    WL, WN = scratch(n_flex, np.zeros(1)), scratch(n_flex, np.zeros(1, dt))
-    if not need:
-        VN = D0 = DN = TN = tn = pert = WN = None
+        TN, tn = _tables(sys0, T0, nl_time, dt, add_nominal=True, kinds=need)
+        WN = scratch(n_flex, np.zeros(1, dt))
+    pert = np.asarray(pert, dtype=np.complex128) if need else None
     return Pseudo(OFF, OFFN, IDX, FOFF, FIDX, PO, PP, PV, VN, D0, ML, ZL, TL, tl, MN, DN, TN,
                   tn, pert, forward, WL, WN)

@@ -38,6 +38,7 @@ from ..solve.record import keep_record, release, solved_step, template
 from ..solve.scheme import kernel_scheme, old_weights
 from ..solve.settings import Settings
 from ..solve.timeloop import StepHook, integrate
+from .designs import system_read
 from .histories import HISTORIES, PerturbedResult
 
 #: A chunk's record holds a multiple of this many steps.
@@ -91,11 +92,7 @@ class DirectHook(StepHook):
         self.sc0 = kernel_scheme(stepper.init_coef, stepper.scale, stepper.b0, stepper.b1,
                                  split=self.rows == 3)
         self.w_old = old_weights(self.sc)
-        # the system and time values as the chunk takes them: None where it forms no matrix
-        # (the reuse variant without an old level's share) and has no perturbed path; its
-        # Python entry then unboxes neither (``morphlab.kernels._jit``)
-        bare = self.refine is None and self.w_old is None and self.d.ps.MN is None
-        self.M, self.T = (None, None) if bare else (stepper.M, stepper.T)
+        self.M, self.T = system_read(stepper, self.refine, self.w_old, self.d.ps)  # the chunk's
 
     def python_step(self, k: int, out) -> None:
         """Step ``k`` solved from Python: its sensitivities (:meth:`solve_pending`) once the

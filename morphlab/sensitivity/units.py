@@ -15,7 +15,9 @@ from ..kernels.system import KIND_NAMES
 
 #: The column of the parts' offsets after the bodies' kinds (the first three kinds).
 _BODY_KINDS_END = KIND_NAMES.index("elements") + 1
-assert KIND_NAMES[:_BODY_KINDS_END] == ("bodies", "flex", "elements")
+#: The bodies' kinds: what their data gradient and stiffness share read of a system.
+BODY_KINDS = KIND_NAMES[:_BODY_KINDS_END]
+assert BODY_KINDS == ("bodies", "flex", "elements")
 
 
 def linear_only(ps: Pseudo, n_x: int) -> np.ndarray:
