@@ -263,6 +263,13 @@ def test_nested_compilations_are_charged_to_their_own_kernel():
     table = kernel_table(rec.records, "p")
     assert table[by["inner"]["kernel"]]["signatures"] == 1
     assert kernel_table(rec.records, "other") == {}
+    # the part in LLVM: some of every compilation's own time, none of its nested ones'; one
+    # thread's CPU is at most its wall time, which Numba's own timer of the LLVM lock measures
+    # over the whole compilation (nested ones included)
+    assert all(0 < r["llvm_cpu_s"] < r["self_cpu_s"] for r in rec.records)
+    wall = outer.get_metadata(outer.signatures[0])["timers"]["llvm_lock"]
+    assert sum(r["llvm_cpu_s"] for r in rec.records) <= wall + 1e-3
+    assert table[by["inner"]["kernel"]]["llvm_cpu_s"] == by["inner"]["llvm_cpu_s"]
 
 
 def test_the_quickstart_scenario_is_the_readmes():

@@ -20,7 +20,11 @@ compilation of a kernel for a signature; a compilation that triggers another (a 
 a kernel compiles its callee first) is charged its own time only (self time = its time minus
 that of the compilations nested in it), so the self times add up to the compile CPU. A cache
 load is no compilation and is not recorded. Kernels compiled in another process (a helper)
-would be missing from the table; the process CPU would still count them.
+would be missing from the table; the process CPU would still count them. Of each self time, the
+part spent inside LLVM (Numba's ``"numba:llvm_lock"`` event, broadcast around every call into
+LLVM: parsing, optimizing and emitting machine code) is recorded apart, so the table tells
+Numba's own work (typing, lowering to LLVM IR in Python, the wrappers) from LLVM's; listening
+to it adds a few microseconds of Python per call into LLVM (tens of thousands per scenario).
 
 Rounds are interleaved: every round runs each scenario once, so a change of the machine's load
 weighs on all of them alike.
@@ -52,7 +56,8 @@ class CompileRecorder(event.Listener):
     Each record: ``kernel`` (module and qualified name of the Python function), ``signature``
     (the argument types as text), ``complex`` (does any argument type hold complex numbers),
     ``cpu_s`` (thread CPU of the whole compilation), ``self_cpu_s`` (minus the compilations
-    nested in it) and ``phase`` (the value of :attr:`phase` when it started).
+    nested in it), ``llvm_cpu_s`` (the part of ``self_cpu_s`` spent in calls into LLVM) and
+    ``phase`` (the value of :attr:`phase` when it started).
     """
 
     def __init__(self):
@@ -66,11 +71,23 @@ class CompileRecorder(event.Listener):
         return self._local.stack
 
     def on_start(self, ev) -> None:
-        self._stack().append([time.thread_time(), 0.0, self.phase])
+        if ev.kind == "numba:llvm_lock":  # LLVM's lock is reentrant: the outermost span
+            depth = getattr(self._local, "llvm_depth", 0)
+            if depth == 0:
+                self._local.llvm_t0 = time.thread_time()
+            self._local.llvm_depth = depth + 1
+            return
+        self._stack().append([time.thread_time(), 0.0, self.phase, 0.0])
 
     def on_end(self, ev) -> None:
         stack = self._stack()
-        t0, nested, phase = stack.pop()
+        if ev.kind == "numba:llvm_lock":  # a call into LLVM: the current compilation's
+            depth = getattr(self._local, "llvm_depth", 0) - 1
+            self._local.llvm_depth = max(depth, 0)
+            if depth == 0 and stack:
+                stack[-1][3] += time.thread_time() - self._local.llvm_t0
+            return
+        t0, nested, phase, llvm = stack.pop()
         total = time.thread_time() - t0
         if stack:
             stack[-1][1] += total
@@ -78,21 +95,24 @@ class CompileRecorder(event.Listener):
         sig = str(ev.data.get("args"))
         self.records.append({"kernel": f"{fn.__module__}.{fn.__qualname__}", "signature": sig,
                              "complex": "complex" in sig, "cpu_s": total,
-                             "self_cpu_s": total - nested, "phase": phase})
+                             "self_cpu_s": total - nested, "llvm_cpu_s": llvm,
+                             "phase": phase})
 
     def __enter__(self) -> CompileRecorder:
         event.register("numba:compile", self)
+        event.register("numba:llvm_lock", self)
         return self
 
     def __exit__(self, *exc) -> None:
+        event.unregister("numba:llvm_lock", self)
         event.unregister("numba:compile", self)
 
 
 def kernel_table(records: list[dict], phase: str | None = None) -> dict:
-    """Per kernel: ``{"signatures", "complex_signatures", "self_cpu_s"}`` of the records (of
-    one ``phase``, or all)."""
+    """Per kernel: ``{"signatures", "complex_signatures", "self_cpu_s", "llvm_cpu_s"}`` of
+    the records (of one ``phase``, or all)."""
     out: dict = defaultdict(lambda: {"signatures": 0, "complex_signatures": 0,
-                                     "self_cpu_s": 0.0})
+                                     "self_cpu_s": 0.0, "llvm_cpu_s": 0.0})
     for r in records:
         if phase is not None and r["phase"] != phase:
             continue
@@ -100,6 +120,7 @@ def kernel_table(records: list[dict], phase: str | None = None) -> dict:
         row["signatures"] += 1
         row["complex_signatures"] += int(r["complex"])
         row["self_cpu_s"] += r["self_cpu_s"]
+        row["llvm_cpu_s"] += r["llvm_cpu_s"]
     return dict(out)
 
 
@@ -178,9 +199,10 @@ def _cold(scenario: str, quick: bool) -> dict:
 
 
 def _median_table(tables: list[dict]) -> dict:
-    """Per kernel: the median over rounds of its self CPU and its signature counts."""
+    """Per kernel: the median over rounds of its self CPU (and the part of it in LLVM) and its
+    signature counts."""
     names = sorted({k for t in tables for k in t})
-    zero = {"signatures": 0, "complex_signatures": 0, "self_cpu_s": 0.0}
+    zero = {"signatures": 0, "complex_signatures": 0, "self_cpu_s": 0.0, "llvm_cpu_s": 0.0}
     return {k: {f: statistics.median([t.get(k, zero)[f] for t in tables]) for f in zero}
             for k in names}
 

@@ -109,6 +109,13 @@ def compile(r: dict, check) -> list[str]:  # noqa: A001 - the case's name
                         (f"{len(lib)} numba library functions", lib),
                         ("**all compilations**", names)):
         lines.append(f"| {label} | " + " | ".join(cell(tables[s], keys) for s in cols) + " |")
+    if any("llvm_cpu_s" in x for t in tables.values() for x in t.values()):
+        def llvm(t: dict, keys) -> str:  # of the self CPU above, the part in LLVM
+            return f"{sum(t[k].get('llvm_cpu_s', 0.0) for k in keys if k in t):.2f}"
+
+        lines.append("| of which in LLVM: its optimization and machine code (the rest: "
+                     "Numba's typing and lowering, in Python) | "
+                     + " | ".join(llvm(tables[s], names) for s in cols) + " |")
     return lines + [""]
 
 
