@@ -85,9 +85,17 @@ RESULTS = {
                         "over_primal": {"best": min(a, d)}}
                        for n_x, d, a in ((1, 1.4, 1.35), (50, 5.65, 1.92),
                                          (200, 18.38, 2.21))]
-                   + [{"n_x": 5, "error": "ZeroDivisionError: boom"}]},
+                   + [{"n_x": 5, "error": "ZeroDivisionError: boom"}],
+                   "by_responses": [
+                       {"n_x": 1, "m": 12, "auto_chose": "adjoint", "faster": "direct",
+                        "adjoint_vs_direct": 1e-12,
+                        "seconds": {"primal": st(0.5), "direct": st(0.68),
+                                    "adjoint": st(0.71), "auto": st(0.7)}},
+                       {"n_x": 5, "m": 15, "error": "ValueError: bad"}]},
                   ["5.65", "18.38", "1.92", "≤ 1.6 ✗", "≤ 2 ✗", "201.00", "1.9",
-                   "| 5 | failed: ZeroDivisionError: boom"]),
+                   "| 5 | failed: ZeroDivisionError: boom", "| 1 | 12 | 1.36 (", "1.42 (",
+                   "1.40 (1.26–1.68), adjoint | direct |", "| 5 | 15 | failed: ValueError: bad",
+                   "slower method at (n_x 1, m 12)"]),
     "pendulum": ({"n_elements": 32, "n_x": 32, "steps": 1000, "responses": ["tip_y"],
                   "settings": {}, "auto_chose": "adjoint", "adjoint_vs_direct": 1e-14,
                   "seconds": {"primal": st(0.25), "direct": st(0.83), "adjoint": st(0.335),

@@ -242,8 +242,8 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
 def test_auto_chooses_by_variables_per_response_and_vjp():
     """More than ``crossover`` variables per response and every response with a vjp: the
     adjoint; a response without one, or fewer variables per response: direct. The default
-    crossover (0.5, measured) takes the adjoint for this model's 6 variables and 3 responses
-    and the direct method for one variable."""
+    crossover (0.15, measured) takes the adjoint for this model's 6 variables and 3 responses
+    and for one variable with them, the direct method for one variable with 9 responses."""
     build, p0, resp = adjoint_responses("pendulum")
     per = len(p0) / len(resp)
     eager = ml.Auto(crossover=0.5 * per)
@@ -252,10 +252,13 @@ def test_auto_chooses_by_variables_per_response_and_vjp():
     assert ml.sensitivities(build, p0, plain, method=eager, **RUN).method == "direct"
     few = ml.sensitivities(build, p0, resp, method=ml.Auto(crossover=2.0 * per), **RUN)
     assert few.method == "direct"
-    assert per == 2 and ml.Auto().crossover == 0.5
+    assert per == 2 and ml.Auto().crossover == 0.15
     assert ml.sensitivities(build, p0, resp, **RUN).method == "adjoint"  # the default: auto
     one = {"t": p0["t"]}
-    assert ml.sensitivities(lambda p: build({**p0, **p}), one, resp, **RUN).method == "direct"
+    one_build = lambda p: build({**p0, **p})  # noqa: E731
+    assert ml.sensitivities(one_build, one, resp, **RUN).method == "adjoint"
+    nine = {f"{k}_{i}": f for i in range(3) for k, f in resp.items()}
+    assert ml.sensitivities(one_build, one, nine, **RUN).method == "direct"
 
 
 @pytest.mark.parametrize("name", CASES)

@@ -199,6 +199,24 @@ def variables(r: dict, check) -> list[str]:
         f"{c:.1f}" if c is not None else "(no crossing in the range)") + "; auto ran the "
         + (f"slower method at n_x = {', '.join(wrong)}" if wrong else "faster method at every "
            "n_x") + f"; adjoint and auto gradients within {worst:.1e} of direct.", ""]
+    if r.get("by_responses"):
+        lines += ["Other numbers of responses m (the first of the three, or the three and "
+                  "displacements of skin nodes): gradient cost in primal runs.", "",
+                  "| n_x | m | direct | adjoint | auto (ran) | faster |",
+                  "|---|---|---|---|---|---|"]
+        for row in r["by_responses"]:
+            if "error" in row:
+                lines.append(f"| {row['n_x']} | {row['m']} | failed: {clip(row['error'], 200)}"
+                             " | | | |")
+                continue
+            t, p = row["seconds"], row["seconds"]["primal"]["median"]
+            lines.append(f"| {row['n_x']} | {row['m']} | {ratio(t['direct'], p)} | "
+                         f"{ratio(t['adjoint'], p)} | {ratio(t['auto'], p)}, "
+                         f"{row['auto_chose']} | {row['faster']} |")
+        wrong = [f"(n_x {row['n_x']}, m {row['m']})" for row in r["by_responses"]
+                 if "error" not in row and row["auto_chose"] != row["faster"]]
+        lines += ["", "Auto ran " + (f"the slower method at {', '.join(wrong)}" if wrong else
+                                     "the faster method at every (n_x, m)") + ".", ""]
     return lines
 
 

@@ -7,6 +7,12 @@ a group of adjacent elements, and the bell-crank points ``x_B, y_B, x_D, y_D`` (
 compile, simulate, responses), direct differentiation, the adjoint,
 ``auto`` and, where affordable, finite differences (n_x + 1 primal runs), all from the design
 dict to the gradients.
+
+The direct method's cost grows with the variables, the adjoint's with the responses, so the
+case also measures direct, adjoint and ``auto`` at a few ``(n_x, m)`` with other numbers of
+responses (:data:`RESPONSE_COUNTS`: the first ``m`` of the three, or the three and
+displacements of skin nodes at the end of the run): where :class:`morphlab.Auto`'s crossover
+comes from.
 """
 
 from __future__ import annotations
@@ -24,10 +30,13 @@ from .gradients import gradient_difference, rounds
 #: Skin elements of the model (groups of ~1 element at 200 variables).
 N_ELEMENTS = 240
 LINK_POINTS = ("x_B", "y_B", "x_D", "y_D")
+#: The ``(n_x, m)`` of the rows with other numbers of responses (module docstring).
+RESPONSE_COUNTS = ((1, 1), (1, 6), (1, 12), (5, 15))
 
 
-def problem(n_x: int, n_elements: int = N_ELEMENTS):
-    """``(build, p0, responses)`` with ``n_x`` variables (module docstring)."""
+def problem(n_x: int, n_elements: int = N_ELEMENTS, n_responses: int = 3):
+    """``(build, p0, responses)`` with ``n_x`` variables and ``n_responses`` responses
+    (module docstring)."""
     n_t = 1 if n_x == 1 else n_x - len(LINK_POINTS)
     groups = np.array_split(np.arange(n_elements), n_t)
     links = () if n_x == 1 else LINK_POINTS
@@ -43,7 +52,21 @@ def problem(n_x: int, n_elements: int = N_ELEMENTS):
 
     p0 = {f"t{k}": base["t_w"] for k in range(n_t)}
     p0.update({k: base[k] for k in links})
-    return build, p0, dict(mo.RESPONSES)
+    return build, p0, _responses(build, p0, n_responses)
+
+
+def _responses(build, p0, m: int) -> dict:
+    """The first ``m`` of the study's three responses; beyond three, the x and y
+    displacements, in turn, of skin nodes spread along it at the end of the run."""
+    resp = dict(list(mo.RESPONSES.items())[:m])
+    if m > len(resp):
+        step = ml.simulate(build(p0), settings=dataclasses.replace(mo.SETTINGS,
+                                                                    t_end=mo.SETTINGS.dt))
+        nodes = np.real(step.node_positions("skin", 0))
+        extra = m - len(resp)
+        for j, i in enumerate(np.linspace(5, nodes.shape[0] - 6, extra).astype(int)):
+            resp[f"u{j}"] = ml.responses.point_displacement("skin", tuple(nodes[i]), j % 2)
+    return resp
 
 
 def _row(n_x: int, n_el: int, settings, repeats: int) -> dict:
@@ -94,9 +117,36 @@ def case_variables(repeats: int, quick: bool) -> dict:
     good = [r for r in rows if "error" not in r]
     if not good:
         raise RuntimeError(f"every n_x failed, e.g. n_x = {rows[0]['n_x']}: {rows[0]['error']}")
+    by_responses = []
+    for n_x, m in (RESPONSE_COUNTS[:2] if quick else RESPONSE_COUNTS):
+        try:
+            by_responses.append(_responses_row(n_x, m, n_el, settings, repeats))
+        except Exception as exc:  # the other rows stay measurable
+            by_responses.append({"n_x": n_x, "m": m,
+                                 "error": f"{type(exc).__name__}: {exc}"[:500]})
     return {"n_elements": n_el, "responses": good[0]["responses"],
             "settings": dataclasses.asdict(settings), "rows": rows,
-            "crossover": _crossover(good)}
+            "crossover": _crossover(good), "by_responses": by_responses}
+
+
+def _responses_row(n_x: int, m: int, n_el: int, settings, repeats: int) -> dict:
+    """Direct, adjoint and ``auto`` at ``n_x`` variables and ``m`` responses, in primal runs
+    (medians of interleaved rounds)."""
+    build, p0, resp = problem(n_x, n_el, m)
+
+    def primal():
+        r = ml.simulate(build(p0), settings=settings)
+        return {k: f(r) for k, f in resp.items()}
+
+    def sens(method):
+        return lambda: ml.sensitivities(build, p0, resp, method=method, settings=settings)
+
+    t, values = rounds({"primal": primal, "direct": sens("direct"), "adjoint": sens("adjoint"),
+                        "auto": sens("auto")}, repeats)
+    med = {k: v["median"] for k, v in t.items()}
+    return {"n_x": n_x, "m": m, "seconds": t, "auto_chose": values["auto"].method,
+            "faster": "direct" if med["direct"] <= med["adjoint"] else "adjoint",
+            "adjoint_vs_direct": gradient_difference(values["adjoint"], values["direct"])}
 
 
 def _crossover(rows: list) -> float | None:

@@ -258,13 +258,16 @@ class Auto(Strategy):
     """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
     response has a ``vjp`` and there are more than ``crossover`` design variables per response
     (the direct method's solves grow with the variables, the adjoint's with the responses; the
-    direct method evaluates each variable's explicit part at every step, the adjoint those of
-    the variables that are not sections or materials, which share one pass a step). The
-    default is measured (BENCHMARKS.md, cases morphing, variables and pendulum: the adjoint
-    faster from about one variable per response, on the 240-element skin with 3 responses
-    from 3 variables, on the morphing study's 5 and the flexible pendulum's 32)."""
+    direct method evaluates each variable's explicit part at every step and each response's
+    derivative with every variable's, the adjoint those of the variables that are not sections
+    or materials, which share one pass a step). The default is measured (BENCHMARKS.md, cases
+    morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
+    variable and one to three responses, the two tie at six, direct is faster at twelve; with
+    five variables the adjoint is faster up to the fifteen responses measured, and at every
+    count of variables with three responses (the morphing study's 5, the flexible pendulum's
+    32 with one)."""
 
-    crossover: float = 0.5
+    crossover: float = 0.15
     direct: Direct = field(default_factory=Direct)
     adjoint: Adjoint = field(default_factory=Adjoint)
 
