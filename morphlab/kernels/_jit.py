@@ -41,6 +41,14 @@ adjoint's sweep and the direct method's chunk no system where they form no matri
 (``morphlab.sensitivity.adjoint._share_inputs``, ``morphlab.sensitivity.designs.
 system_read``).
 
+About half of a kernel's compile time is Numba's own, in Python: typing the kernel and
+lowering it to LLVM IR, in proportion to the code it writes (each array access, each array of
+a tuple passed on); the other half is LLVM's optimization and machine code for the kernel's
+module, its callees' code included (the compile bench's LLVM row: ``morphlab.bench.compile``).
+Neither half is settings: a lower LLVM optimization level (``NUMBA_OPT``) saves a small part
+of the LLVM half and slows every run, and inner kernels compiled without reference counting
+compile no faster. Less code emitted fewer times is what shortens it.
+
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
 compiles a signature of a kernel holding a lock file for that signature, and a second
