@@ -69,10 +69,10 @@ def _responses(build, p0, m: int) -> dict:
     return resp
 
 
-def _row(n_x: int, n_el: int, settings, repeats: int) -> dict:
-    """The figures of one ``n_x`` (:func:`case_variables`)."""
-    build, p0, resp = problem(n_x, n_el)
-
+def _timed(build, p0, resp, settings, repeats: int) -> tuple:
+    """The primal (build, compile, simulate, responses), direct, adjoint and ``auto`` of one
+    problem in interleaved rounds: ``(times, values, sens)`` as :func:`~morphlab.bench.
+    gradients.rounds` gives them, and ``sens(method)`` the gradient's call."""
     def primal():
         r = ml.simulate(build(p0), settings=settings)
         return {k: f(r) for k, f in resp.items()}
@@ -82,6 +82,13 @@ def _row(n_x: int, n_el: int, settings, repeats: int) -> dict:
 
     t, values = rounds({"primal": primal, "direct": sens("direct"), "adjoint": sens("adjoint"),
                         "auto": sens("auto")}, repeats)
+    return t, values, sens
+
+
+def _row(n_x: int, n_el: int, settings, repeats: int) -> dict:
+    """The figures of one ``n_x`` (:func:`case_variables`)."""
+    build, p0, resp = problem(n_x, n_el)
+    t, values, sens = _timed(build, p0, resp, settings, repeats)
     fd_runs = 1 if n_x > 20 else max(1, repeats // 2)
     t["finite_difference"] = time_stats(interleaved_times(
         {"fd": sens("forward-difference")}, fd_runs)["fd"])
@@ -132,17 +139,7 @@ def case_variables(repeats: int, quick: bool) -> dict:
 def _responses_row(n_x: int, m: int, n_el: int, settings, repeats: int) -> dict:
     """Direct, adjoint and ``auto`` at ``n_x`` variables and ``m`` responses, in primal runs
     (medians of interleaved rounds)."""
-    build, p0, resp = problem(n_x, n_el, m)
-
-    def primal():
-        r = ml.simulate(build(p0), settings=settings)
-        return {k: f(r) for k, f in resp.items()}
-
-    def sens(method):
-        return lambda: ml.sensitivities(build, p0, resp, method=method, settings=settings)
-
-    t, values = rounds({"primal": primal, "direct": sens("direct"), "adjoint": sens("adjoint"),
-                        "auto": sens("auto")}, repeats)
+    t, values, _ = _timed(*problem(n_x, n_el, m), settings, repeats)
     med = {k: v["median"] for k, v in t.items()}
     return {"n_x": n_x, "m": m, "seconds": t, "auto_chose": values["auto"].method,
             "faster": "direct" if med["direct"] <= med["adjoint"] else "adjoint",
