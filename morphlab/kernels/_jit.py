@@ -45,9 +45,9 @@ About half of a kernel's compile time is Numba's own, in Python: typing the kern
 lowering it to LLVM IR, in proportion to the code it writes (each array access, each array of
 a tuple passed on); the other half is LLVM's optimization and machine code for the kernel's
 module, its callees' code included (the compile bench's LLVM row: ``morphlab.bench.compile``).
-Neither half is settings: a lower LLVM optimization level (``NUMBA_OPT``) saves a small part
-of the LLVM half and slows every run, and inner kernels compiled without reference counting
-compile no faster. Less code emitted fewer times is what shortens it.
+Neither half yields to a setting: a lower LLVM optimization level (``NUMBA_OPT``) saves a
+small part of the LLVM half and slows every run, and inner kernels compiled without reference
+counting compile no faster. Less code, emitted fewer times, is what shortens it.
 
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
