@@ -41,7 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import inner, kernel
+from ._jit import inner
 from .schema import Kind, design, pattern, register, topology
 
 BODIES = register(Kind("bodies", [
@@ -112,12 +112,12 @@ class Scratch(NamedTuple):
     loc: np.ndarray
 
 
-@kernel
-def scratch(n_flex, like):
-    """A :class:`Scratch` for ``n_flex`` coordinates in the dtype of ``like``."""
-    m = n_flex + 1
-    return Scratch(np.zeros((3, m), dtype=like.dtype), np.zeros((7, m), dtype=like.dtype),
-                   np.zeros(6, dtype=np.int64), np.zeros((4, 6), dtype=like.dtype))
+def scratch(n_flex: int, like: np.ndarray) -> Scratch:
+    """A :class:`Scratch` for ``n_flex`` coordinates in the dtype of ``like`` (allocated in
+    NumPy: only Python asks for one, once per run or sensitivity set-up)."""
+    m, dt = n_flex + 1, like.dtype
+    return Scratch(np.zeros((3, m), dtype=dt), np.zeros((7, m), dtype=dt),
+                   np.zeros(6, dtype=np.int64), np.zeros((4, 6), dtype=dt))
 
 
 @inner
