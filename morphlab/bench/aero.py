@@ -106,7 +106,7 @@ def case_aero(repeats: int, quick: bool) -> dict:
 
 
 def render(r: dict, check) -> list[str]:
-    """The case's section of BENCHMARKS.md (:mod:`morphlab.bench.report_cases`)."""
+    """The case's section of the details page (:mod:`morphlab.bench.report_cases`)."""
     from .report_cases import ratio, s3
 
     f, c, g = r["flow_s"], r["coupled_s"], r["gradient_s"]

@@ -1,9 +1,12 @@
-"""BENCHMARKS.md, generated from ``benchmarks.json`` (:mod:`morphlab.bench.record`).
+"""BENCHMARKS.md and its details page, generated from ``benchmarks.json``
+(:mod:`morphlab.bench.record`).
 
-:func:`render` reads only the record, so ``python -m morphlab.bench --report`` rewrites the page
-without running anything. One section per case: the command that reproduces it, its commit,
-machine and date, medians with their min–max, the ratios, and the targets of the issues
-(:data:`TARGETS`) beside the figures they judge.
+Both read only the record, so ``python -m morphlab.bench --report`` rewrites them without
+running anything. :func:`render`, the one page a reader opens: each case's key figures
+(:mod:`~morphlab.bench.report_glance`) with the targets of the issues (:data:`TARGETS`), and
+the command, commit and date of each case. :func:`render_detail`, ``docs/benchmarks-detail.md``:
+one section per case with every table (:mod:`~morphlab.bench.report_cases`), medians with their
+min–max, the machine and its load.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import os
 from pathlib import Path
 
 from . import report_cases as cases
+from . import report_glance as glance
 
 #: Targets of the issues: (figure, limit, issue). ``<=``: at most; ``>=``: at least.
 TARGETS = {
@@ -41,14 +45,28 @@ DESCRIPTIONS = {
 
 HEADER = """# Benchmarks
 
-Generated from `benchmarks.json` by `python -m morphlab.bench --report`; do not edit by hand
-(run the command under a section to measure it again: the record keeps the other sections).
-Every time is the median of repeated runs in one process, with the min–max of the runs in
-brackets; the runs of one table take turns in interleaved rounds, and every ratio is formed
-from medians of one run. A ratio's brackets are the method's min and max over the median
-primal. Targets are those of the issues named; ✓ met, ✗ not met. Earlier rounds, measured on
-older code: [docs/benchmarks-history.md](docs/benchmarks-history.md).
+The current figure of each benchmark case, generated from `benchmarks.json` by `python -m
+morphlab.bench --report`; do not edit by hand. Times are medians of repeated runs in one
+process; a ratio is formed from medians of one run. ✓ / ✗: the target of the issue named is
+met / not met. Every table in full, with the min–max of the runs, the compile time per kernel
+and each run's machine and load: [docs/benchmarks-detail.md](docs/benchmarks-detail.md);
+earlier rounds, on older code: [docs/benchmarks-history.md](docs/benchmarks-history.md).
 """
+
+DETAIL_HEADER = """# Benchmarks in detail
+
+Generated from `benchmarks.json` by `python -m morphlab.bench --report` with
+[BENCHMARKS.md](../BENCHMARKS.md), its one-page summary; do not edit by hand (run the command
+under a section to measure it again: the record keeps the other sections). Every time is the
+median of repeated runs in one process, with the min–max of the runs in brackets; the runs of
+one table take turns in interleaved rounds, and every ratio is formed from medians of one run.
+A ratio's brackets are the method's min and max over the median primal. Targets are those of
+the issues named; ✓ met, ✗ not met. Earlier rounds, measured on older code:
+[benchmarks-history.md](benchmarks-history.md).
+"""
+
+#: Where ``--report`` writes the details page, relative to the summary page's folder.
+DETAIL_PATH = Path("docs") / "benchmarks-detail.md"
 
 
 def check(key: str, value) -> str:
@@ -91,8 +109,47 @@ def _meta(case: str, e: dict) -> list[str]:
 
 
 def render(record: dict) -> str:
-    """The page for ``record`` (:mod:`morphlab.bench.record`)."""
-    lines = [HEADER]
+    """The one-page summary for ``record`` (:mod:`morphlab.bench.record`): each case's key
+    figures with their targets, then the command, duration, commit and date of each case."""
+    known = [c for c in DESCRIPTIONS if c in record["cases"]]
+    other = [c for c in record["cases"] if c not in DESCRIPTIONS]
+    lines = [HEADER, "| case | figure | measured | target |", "|---|---|---|---|"]
+    runs = ["| case | command | took | commit | date |", "|---|---|---|---|---|"]
+    for case in known:
+        e = record["cases"][case]
+        if "error" in e:
+            rows = [(DESCRIPTIONS[case], f"failed: {cases.clip(e['error'], 120)}", "")]
+        else:
+            try:
+                rows = getattr(glance, case)(e["result"], check)
+            except (KeyError, TypeError, ValueError) as exc:  # a record of another layout
+                rows = [(DESCRIPTIONS[case], f"not summarized ({type(exc).__name__}: {exc}); "
+                         "see the details page", "")]
+        lines += [f"| {case} | {a} | {b} | {c} |" for a, b, c in rows]
+        m = e.get("machine") or {}
+        note = "; **quick run**: not the reference figures" if e.get("quick") else ""
+        if "failed_run" in e:
+            note += f"; its latest run ({e['failed_run']['date'][:10]}) failed"
+        commit = (e.get("commit") or "unknown")[:7] + ("+" if e.get("dirty") else "")
+        runs.append(f"| {case} | `{reproduce(case, e)}`{note} | {e.get('seconds', 0):.0f} s | "
+                    f"{commit} | {str(e.get('date', '?'))[:10]}, {m.get('usable_cores', '?')} "
+                    f"cores, load {_load(e)} |")
+    lines += ["", "Each case as it was last measured (commit: `+` with uncommitted changes; "
+              "load: the one-minute load average before the run):", ""] + runs
+    if other:
+        lines += ["", f"Cases in the record this suite does not render: {', '.join(other)}."]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _load(e: dict) -> str:
+    load = e.get("load_average")
+    return f"{load[0]:.1f}" if load else "?"
+
+
+def render_detail(record: dict) -> str:
+    """The details page for ``record``: every case's tables in full, with its command,
+    commit, machine and date."""
+    lines = [DETAIL_HEADER]
     known = [c for c in DESCRIPTIONS if c in record["cases"]]
     other = [c for c in record["cases"] if c not in DESCRIPTIONS]
     for case in known:
@@ -107,8 +164,13 @@ def render(record: dict) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def write(record: dict, path: str | os.PathLike) -> int:
-    """Write :func:`render` of ``record`` to ``path``; returns the number of lines."""
+def write(record: dict, path: str | os.PathLike, detail: str | os.PathLike | None = None
+          ) -> int:
+    """Write :func:`render` of ``record`` to ``path`` and :func:`render_detail` to ``detail``
+    (default: :data:`DETAIL_PATH` beside ``path``); returns the summary's number of lines."""
     text = render(record)
     Path(path).write_text(text, encoding="utf-8")
+    detail = Path(path).parent / DETAIL_PATH if detail is None else Path(detail)
+    detail.parent.mkdir(parents=True, exist_ok=True)
+    detail.write_text(render_detail(record), encoding="utf-8")
     return text.count("\n")

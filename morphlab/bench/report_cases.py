@@ -1,4 +1,5 @@
-"""The sections of BENCHMARKS.md, one function per case (:mod:`morphlab.bench.report`).
+"""The sections of the details page (docs/benchmarks-detail.md), one function per case
+(:mod:`morphlab.bench.report`).
 
 Each takes the case's result (as the case function returned it) and the target checker
 ``check(key, value)`` (the text of the issue's target for that figure, empty where there is

@@ -6,8 +6,8 @@ median over ``repeats`` runs in one process with its min and max, the runs of on
 interleaved round by round, and every ratio formed within one run. The results are merged into
 ``benchmarks.json`` (:mod:`morphlab.bench.record`: a run of some cases replaces those and keeps
 the others), each case with its command line, commit, machine, date and versions;
-``--report`` rewrites ``BENCHMARKS.md`` from that file (:mod:`morphlab.bench.report`), alone
-without running anything.
+``--report`` rewrites ``BENCHMARKS.md`` (one page) and ``docs/benchmarks-detail.md`` (every
+table) from that file (:mod:`morphlab.bench.report`), alone without running anything.
 """
 
 from __future__ import annotations
@@ -18,9 +18,10 @@ import shlex
 import sys
 import time
 import traceback
+from pathlib import Path
 
 from . import record
-from .report import DESCRIPTIONS, render, write
+from .report import DESCRIPTIONS, DETAIL_PATH, render_detail, write
 
 
 def case_exudyn(repeats: int, quick: bool) -> dict:
@@ -86,7 +87,8 @@ def _parser() -> argparse.ArgumentParser:
                     help="rewrite the Markdown page from the record (after running the cases "
                          "given, if any)")
     ap.add_argument("--out", default="benchmarks.json", help="the JSON record (merged)")
-    ap.add_argument("--markdown", default="BENCHMARKS.md", help="the page --report writes")
+    ap.add_argument("--markdown", default="BENCHMARKS.md",
+                    help="the page --report writes (and docs/benchmarks-detail.md beside it)")
     return ap
 
 
@@ -162,11 +164,12 @@ def main(argv: list[str] | None = None) -> int:
             return 130
         if done:  # the sections of the cases just run, as the page will show them
             cases = record.load(args.out)["cases"]
-            print(render({"cases": {c: cases[c] for c in done}}))
+            print(render_detail({"cases": {c: cases[c] for c in done}}))
         if args.report:
             n = write(record.load(args.out), args.markdown)
-            print(f"morphlab.bench: wrote {args.markdown} ({n} lines) from {args.out}",
-                  file=sys.stderr)
+            detail = Path(args.markdown).parent / DETAIL_PATH
+            print(f"morphlab.bench: wrote {args.markdown} ({n} lines) and {detail} from "
+                  f"{args.out}", file=sys.stderr)
     except record.BenchError as exc:
         return _fail(str(exc))
     return 1 if any("error" in e for e in done.values()) else 0
