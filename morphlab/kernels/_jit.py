@@ -49,6 +49,15 @@ Neither half yields to a setting: a lower LLVM optimization level (``NUMBA_OPT``
 small part of the LLVM half and slows every run, and inner kernels compiled without reference
 counting compile no faster. Less code, emitted fewer times, is what shortens it.
 
+Numba would also turn each inner kernel's own library into machine code, and optimize its
+module as a whole before its callers link it in and optimize it again: work whose result no
+one runs. The kernels' libraries are :class:`_Library`: an inner kernel's, and those of the
+functions Numba compiles for a kernel, are optimized function by function, linked and cached
+as LLVM IR; only a kernel Python calls gets machine code, for its whole module, as before.
+The same machine code runs; the compile is shorter by the inner kernels' share of LLVM's
+work. ``MORPHLAB_INNER_IR_ONLY=0`` turns this off (Numba's own library for every kernel),
+and so does a Numba whose internals it relies on differ (:data:`IR_ONLY` says which).
+
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
 compiles a signature of a kernel holding a lock file for that signature, and a second
@@ -69,6 +78,7 @@ import warnings
 
 from numba import njit
 from numba.core import sigutils
+from numba.core.codegen import JITCodeLibrary
 from numba.core.compiler_lock import global_compiler_lock
 from numba.core.registry import CPUDispatcher
 
@@ -166,8 +176,89 @@ class KernelDispatcher(CPUDispatcher):
                 return existing.entry_point
             name = _kernel_name(self)
             key = hashlib.sha1(f"{name}{args}".encode()).hexdigest()[:20]
-            with LOCKS.hold(_cache_folder(self), f"{name}.{key}.lock"):
-                return super().compile(sig)
+            _COMPILING.append(self)
+            try:
+                with LOCKS.hold(_cache_folder(self), f"{name}.{key}.lock"):
+                    return super().compile(sig)
+            finally:
+                _COMPILING.pop()
+
+
+#: The kernels being compiled, innermost last (under Numba's compiler lock: one thread).
+_COMPILING: list = []
+
+
+class _Library(JITCodeLibrary):
+    """Numba's code library, kept as LLVM IR when only other kernels' code runs it.
+
+    That is the library of an :func:`inner` kernel and of every function Numba compiles for a
+    kernel (its overloads: ``np.empty``, ``max``, ...): a kernel called from Python holds a
+    copy of all their code in its own module, which LLVM optimizes as a whole and turns into
+    machine code; the machine code Numba would emit for their own libraries is never called,
+    and the optimization of their own modules is done again in the caller's. Such a library
+    is optimized function by function (Numba's per-function passes, as before it is linked),
+    kept as IR for linking and cached as bitcode; nothing else of it is compiled. The library
+    of a kernel Python calls, and any library made outside a kernel's compilation (a user's
+    own ``njit`` functions), is Numba's, unchanged."""
+
+    def __init__(self, codegen, name, **kwargs):
+        super().__init__(codegen, name, **kwargs)
+        top = _COMPILING[-1] if _COMPILING else None
+        self._ir_only = top is not None and (isinstance(top, InnerDispatcher)
+                                             or name != top.py_func.__qualname__)
+
+    def _optimize_final_module(self):
+        if not self._ir_only:
+            super()._optimize_final_module()
+
+    def _finalize_final_module(self):
+        if not self._ir_only:
+            return super()._finalize_final_module()
+        # what Numba checks of a finished module; it is not added to the JIT engine
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+        return None
+
+    def serialize_using_object_code(self):
+        if not self._ir_only:
+            return super().serialize_using_object_code()
+        self._ensure_finalized()  # Numba's loader takes 'bitcode' as it is (no new passes)
+        return (self.name, "bitcode", self._get_module_for_linking().as_bitcode())
+
+
+#: The Numba internals :class:`_Library` relies on; without one of them (another Numba
+#: layout) Numba's own library is kept and every library is compiled to machine code.
+_NEEDS = ("_finalize_dynamic_globals", "_verify_declare_only_symbols", "_optimize_final_module",
+          "_finalize_final_module", "_get_module_for_linking", "_ensure_finalized",
+          "serialize_using_object_code")
+
+
+def _use_ir_only_libraries() -> bool:
+    """Make :class:`_Library` the library class of Numba's CPU code generator (unless
+    ``MORPHLAB_INNER_IR_ONLY=0``, or Numba's layout differs). Returns whether it is."""
+    from numba.core.registry import cpu_target
+
+    if os.environ.get("MORPHLAB_INNER_IR_ONLY", "1") == "0":
+        return False
+    codegen = cpu_target.target_context.codegen()
+    if getattr(codegen, "_library_class", None) is _Library:
+        return True
+    if (getattr(codegen, "_library_class", None) is not JITCodeLibrary
+            or not all(hasattr(JITCodeLibrary, a) for a in _NEEDS)
+            or not hasattr(getattr(codegen, "_engine", None), "get_global_value_address")):
+        return False
+    set_env = codegen.set_env
+
+    def set_env_if_defined(env_name, env):
+        # an IR-only library is not in the JIT engine, so neither is its environment (the
+        # copies in its callers' modules stay unset, as for any kernel loaded from a cache)
+        if codegen._engine.get_global_value_address(env_name):
+            set_env(env_name, env)
+
+    codegen.set_env = set_env_if_defined
+    codegen._library_class = _Library
+    return True
 
 
 class InnerDispatcher(KernelDispatcher):
@@ -176,6 +267,10 @@ class InnerDispatcher(KernelDispatcher):
     def __call__(self, *args, **kws):
         raise TypeError(f"{self.py_func.__module__}.{self.py_func.__qualname__} is a kernel "
                         "other kernels call: it has no Python entry")
+
+
+#: Whether the kernels' inner libraries are kept as IR (:class:`_Library`).
+IR_ONLY = _use_ir_only_libraries()
 
 
 def _locked_saves(d, cls):
