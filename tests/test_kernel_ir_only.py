@@ -16,6 +16,7 @@ import pytest
 from morphlab.kernels import _jit
 
 _MODULE = textwrap.dedent('''
+    import numba
     import numpy as np
     from morphlab.kernels._jit import inner, kernel
 
@@ -43,6 +44,36 @@ _MODULE = textwrap.dedent('''
     @kernel
     def second(x):
         return scaled(x, 3.0)[-1]
+
+
+    @inner
+    def via_python(x):
+        with numba.objmode(y="float64"):  # lifted out: compiled to run in object mode
+            y = float(np.sum(x))
+        return 2.0 * y
+
+
+    @kernel
+    def third(x):
+        return via_python(x) + 1.0
+
+
+    @numba.njit(parallel=True)  # a user's parallel function, its loop body a gufunc
+    def squares(x):
+        s = 0.0
+        for i in numba.prange(x.shape[0]):
+            s += x[i] * x[i]
+        return s
+
+
+    @inner
+    def shifted_squares(x):
+        return squares(x) + 1.0
+
+
+    @kernel
+    def fourth(x):
+        return 2.0 * shifted_squares(x)
 ''')
 
 #: One process: import the module, call the kernels named, report values and cache use.
@@ -55,7 +86,7 @@ _CHILD = textwrap.dedent("""
     out = {"ir_only": _jit.IR_ONLY}
     for name in sys.argv[1].split(","):
         out[name] = float(getattr(irmod, name)(x)).hex()
-    for name in ("scaled", "checked", "first", "second"):
+    for name in ("scaled", "checked", "first", "second", "via_python", "third"):
         d = getattr(irmod, name)
         out[name + ".hits"] = sum(d.stats.cache_hits.values())
         out[name + ".misses"] = sum(d.stats.cache_misses.values())
@@ -89,6 +120,12 @@ def test_an_inner_kernel_has_no_machine_code_and_its_caller_runs_it(irmod):
     # an inner kernel's exception crosses its caller's module as before
     with pytest.raises(ValueError, match="checked: an empty array"):
         irmod.first(np.empty(0))
+    # an object-mode block in an inner kernel: the block itself is machine code, called
+    # through a pointer, and finds the inner kernel's environment
+    assert irmod.third(x) == 2.0 * np.sum(x) + 1.0
+    # a parallel loop's body is called through a pointer as well
+    assert irmod.fourth(x) == pytest.approx(2.0 * (np.sum(x * x) + 1.0), rel=1e-14)
+    assert irmod.via_python.overloads[irmod.via_python.signatures[0]].library._ir_only
 
 
 def _child(tmp_path, cache, calls: str, ir_only: bool = True) -> dict:
@@ -104,17 +141,17 @@ def _child(tmp_path, cache, calls: str, ir_only: bool = True) -> dict:
 def test_a_later_process_links_the_cached_ir_into_a_new_kernel(tmp_path):
     (tmp_path / "irmod.py").write_text(_MODULE)
     cache = tmp_path / "cache"
-    a = _child(tmp_path, cache, "first")
+    a = _child(tmp_path, cache, "first,third")
     if not a["ir_only"]:
         pytest.skip("IR-only libraries are off in this environment")
     assert a["scaled.misses"] == 1 and a["first.misses"] == 1
-    b = _child(tmp_path, cache, "second,first")
+    b = _child(tmp_path, cache, "second,first,third")
     assert b["scaled.hits"] == 1 and b["scaled.misses"] == 0  # the bitcode, loaded
-    assert b["second.misses"] == 1 and b["first.hits"] == 1
-    ref = _child(tmp_path, tmp_path / "ref", "second,first", ir_only=False)
+    assert b["second.misses"] == 1 and b["first.hits"] == 1 and b["third.hits"] == 1
+    ref = _child(tmp_path, tmp_path / "ref", "second,first,third", ir_only=False)
     assert not ref["ir_only"]
-    assert (b["first"], b["second"]) == (a["first"], ref["second"])
-    assert b["first"] == ref["first"]  # the same machine code, bit for bit
+    assert (b["first"], b["second"], b["third"]) == (a["first"], ref["second"], a["third"])
+    assert (b["first"], b["third"]) == (ref["first"], ref["third"])  # the same bits
 
 
 def test_a_cache_filled_by_numbas_own_libraries_is_linked_as_well(tmp_path):

@@ -50,13 +50,15 @@ small part of the LLVM half and slows every run, and inner kernels compiled with
 counting compile no faster. Less code, emitted fewer times, is what shortens it.
 
 Numba would also turn each inner kernel's own library into machine code, and optimize its
-module as a whole before its callers link it in and optimize it again: work whose result no
-one runs. The kernels' libraries are :class:`_Library`: an inner kernel's, and those of the
-functions Numba compiles for a kernel, are optimized function by function, linked and cached
-as LLVM IR; only a kernel Python calls gets machine code, for its whole module, as before.
-The same machine code runs; the compile is shorter by the inner kernels' share of LLVM's
-work. ``MORPHLAB_INNER_IR_ONLY=0`` turns this off (Numba's own library for every kernel),
-and so does a Numba whose internals it relies on differ (:data:`IR_ONLY` says which).
+module as a whole before its callers link it in and optimize it again: work whose result no one
+runs. The kernels' libraries are :class:`_Library`: an inner kernel's, and those of the
+functions Numba compiles for a kernel, are optimized function by function, linked and cached as
+LLVM IR; only a kernel Python calls gets machine code, for its whole module, as before. The
+same machine code runs; the compile is shorter by the inner kernels' share of LLVM's work. What
+runs through a pointer keeps its machine code: a block of a kernel lifted out to run in object
+mode, a parallel loop's body, a kernel Python calls. ``MORPHLAB_INNER_IR_ONLY=0`` turns this
+off (Numba's own library for every kernel), and so does a Numba whose internals it relies on
+differ (:data:`IR_ONLY` says which).
 
 Processes that share a cache (the workers of ``pytest -n 2`` or of a parameter study, the
 main command and its compile helper) compile each kernel once between them: a process
@@ -70,6 +72,7 @@ once could otherwise drop one or give two signatures the same data file.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import hashlib
 import os
 import re
@@ -77,9 +80,10 @@ import time
 import warnings
 
 from numba import njit
-from numba.core import sigutils
+from numba.core import event, sigutils
 from numba.core.codegen import JITCodeLibrary
 from numba.core.compiler_lock import global_compiler_lock
+from numba.core.environment import lookup_environment
 from numba.core.registry import CPUDispatcher
 
 try:
@@ -184,28 +188,60 @@ class KernelDispatcher(CPUDispatcher):
                 _COMPILING.pop()
 
 
-#: The kernels being compiled, innermost last (under Numba's compiler lock: one thread).
+#: The dispatchers compiling, innermost last (under Numba's compiler lock: one thread): the
+#: kernels from their ``compile`` (a cache load included), any other (Numba's overloads, an
+#: object-mode block lifted out of a kernel) from Numba's compile event (:class:`_Compiles`).
 _COMPILING: list = []
 
 
+class _Compiles(event.Listener):
+    """Keeps :data:`_COMPILING` for the dispatchers that are not kernels."""
+
+    def on_start(self, ev):
+        d = ev.data["dispatcher"]
+        if not isinstance(d, KernelDispatcher):
+            _COMPILING.append(d)
+
+    def on_end(self, ev):
+        d = ev.data["dispatcher"]
+        if not isinstance(d, KernelDispatcher):
+            for i in range(len(_COMPILING) - 1, -1, -1):
+                if _COMPILING[i] is d:
+                    del _COMPILING[i]
+                    break
+
+
+def _links_only(name: str) -> bool:
+    """Whether the library ``name`` made now holds code only other kernels' modules run: the
+    own library of an inner kernel, or of a function Numba compiles with a plain ``njit``
+    dispatcher (its overloads) for a kernel. Not a kernel Python calls, not a block lifted
+    out of a kernel to run in object mode (called through a pointer), not a library a
+    compilation makes besides its own (a subroutine, a parallel loop's body)."""
+    top = _COMPILING[-1] if _COMPILING else None
+    if top is None or name != getattr(getattr(top, "py_func", None), "__qualname__", None):
+        return False
+    if isinstance(top, KernelDispatcher):
+        return isinstance(top, InnerDispatcher)
+    return type(top) is CPUDispatcher and any(isinstance(d, KernelDispatcher)
+                                              for d in _COMPILING)
+
+
 class _Library(JITCodeLibrary):
-    """Numba's code library, kept as LLVM IR when only other kernels' code runs it.
+    """Numba's code library, kept as LLVM IR when only other kernels' code runs it
+    (:func:`_links_only`).
 
     That is the library of an :func:`inner` kernel and of every function Numba compiles for a
-    kernel (its overloads: ``np.empty``, ``max``, ...): a kernel called from Python holds a
-    copy of all their code in its own module, which LLVM optimizes as a whole and turns into
-    machine code; the machine code Numba would emit for their own libraries is never called,
-    and the optimization of their own modules is done again in the caller's. Such a library
-    is optimized function by function (Numba's per-function passes, as before it is linked),
-    kept as IR for linking and cached as bitcode; nothing else of it is compiled. The library
-    of a kernel Python calls, and any library made outside a kernel's compilation (a user's
-    own ``njit`` functions), is Numba's, unchanged."""
+    kernel with a plain dispatcher (its overloads: ``np.empty``, ``max``, ...): a kernel
+    called from Python holds a copy of all their code in its own module, which LLVM
+    optimizes as a whole and turns into machine code; the machine code Numba would emit for
+    their own libraries is never called, and the optimization of their own modules is done
+    again in the caller's. Such a library is optimized function by function (Numba's
+    per-function passes, as before it is linked), kept as IR for linking and cached as
+    bitcode; nothing else of it is compiled. Every other library is Numba's, unchanged."""
 
     def __init__(self, codegen, name, **kwargs):
         super().__init__(codegen, name, **kwargs)
-        top = _COMPILING[-1] if _COMPILING else None
-        self._ir_only = top is not None and (isinstance(top, InnerDispatcher)
-                                             or name != top.py_func.__qualname__)
+        self._ir_only = _links_only(name)
 
     def _optimize_final_module(self):
         if not self._ir_only:
@@ -213,12 +249,28 @@ class _Library(JITCodeLibrary):
 
     def _finalize_final_module(self):
         if not self._ir_only:
-            return super()._finalize_final_module()
+            super()._finalize_final_module()
+            self._set_linked_environments()
+            return
         # what Numba checks of a finished module; it is not added to the JIT engine
         self._finalize_dynamic_globals()
         self._verify_declare_only_symbols()
         self._finalized = True
-        return None
+
+    def _set_linked_environments(self):
+        """Point the environments of the IR-only code linked into this module at their
+        objects. Numba sets a function's environment when its own library enters the engine
+        (an IR-only library never does) and a cached kernel's environments when it is loaded;
+        a kernel compiled now finds those of its inner kernels here (an object-mode block in
+        one reads it)."""
+        engine = self._codegen._engine
+        for gv in self._final_module.global_variables:
+            if not gv.name.startswith("_ZN08NumbaEnv"):
+                continue
+            addr = engine.get_global_value_address(gv.name)
+            env = lookup_environment(gv.name)
+            if addr and env is not None and not ctypes.c_void_p.from_address(addr).value:
+                ctypes.c_void_p.from_address(addr).value = id(env)
 
     def serialize_using_object_code(self):
         if not self._ir_only:
@@ -258,6 +310,7 @@ def _use_ir_only_libraries() -> bool:
 
     codegen.set_env = set_env_if_defined
     codegen._library_class = _Library
+    event.register("numba:compile", _Compiles())
     return True
 
 
