@@ -111,8 +111,7 @@ def _meta(case: str, e: dict) -> list[str]:
 def render(record: dict) -> str:
     """The one-page summary for ``record`` (:mod:`morphlab.bench.record`): each case's key
     figures with their targets, then the command, duration, commit and date of each case."""
-    known = [c for c in DESCRIPTIONS if c in record["cases"]]
-    other = [c for c in record["cases"] if c not in DESCRIPTIONS]
+    known, other = _cases(record)
     lines = [HEADER, "| case | figure | measured | target |", "|---|---|---|---|"]
     runs = ["| case | command | took | commit | date |", "|---|---|---|---|---|"]
     for case in known:
@@ -141,6 +140,12 @@ def render(record: dict) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+def _cases(record: dict) -> tuple[list, list]:
+    """The record's cases this suite renders, in the page's order, and the others."""
+    return ([c for c in DESCRIPTIONS if c in record["cases"]],
+            [c for c in record["cases"] if c not in DESCRIPTIONS])
+
+
 def _load(e: dict) -> str:
     load = e.get("load_average")
     return f"{load[0]:.1f}" if load else "?"
@@ -150,8 +155,7 @@ def render_detail(record: dict) -> str:
     """The details page for ``record``: every case's tables in full, with its command,
     commit, machine and date."""
     lines = [DETAIL_HEADER]
-    known = [c for c in DESCRIPTIONS if c in record["cases"]]
-    other = [c for c in record["cases"] if c not in DESCRIPTIONS]
+    known, other = _cases(record)
     for case in known:
         e = record["cases"][case]
         lines += [f"## {case}: {DESCRIPTIONS[case]}", ""] + _meta(case, e)
@@ -164,13 +168,13 @@ def render_detail(record: dict) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def write(record: dict, path: str | os.PathLike, detail: str | os.PathLike | None = None
-          ) -> int:
-    """Write :func:`render` of ``record`` to ``path`` and :func:`render_detail` to ``detail``
-    (default: :data:`DETAIL_PATH` beside ``path``); returns the summary's number of lines."""
+def write(record: dict, path: str | os.PathLike) -> tuple[int, Path]:
+    """Write :func:`render` of ``record`` to ``path`` and :func:`render_detail` to
+    :data:`DETAIL_PATH` beside it; returns the summary's number of lines and the details
+    page's path."""
     text = render(record)
     Path(path).write_text(text, encoding="utf-8")
-    detail = Path(path).parent / DETAIL_PATH if detail is None else Path(detail)
+    detail = Path(path).parent / DETAIL_PATH
     detail.parent.mkdir(parents=True, exist_ok=True)
     detail.write_text(render_detail(record), encoding="utf-8")
-    return text.count("\n")
+    return text.count("\n"), detail

@@ -18,10 +18,9 @@ import shlex
 import sys
 import time
 import traceback
-from pathlib import Path
 
 from . import record
-from .report import DESCRIPTIONS, DETAIL_PATH, render_detail, write
+from .report import DESCRIPTIONS, render_detail, write
 
 
 def case_exudyn(repeats: int, quick: bool) -> dict:
@@ -166,8 +165,7 @@ def main(argv: list[str] | None = None) -> int:
             cases = record.load(args.out)["cases"]
             print(render_detail({"cases": {c: cases[c] for c in done}}))
         if args.report:
-            n = write(record.load(args.out), args.markdown)
-            detail = Path(args.markdown).parent / DETAIL_PATH
+            n, detail = write(record.load(args.out), args.markdown)
             print(f"morphlab.bench: wrote {args.markdown} ({n} lines) and {detail} from "
                   f"{args.out}", file=sys.stderr)
     except record.BenchError as exc:

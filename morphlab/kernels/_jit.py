@@ -303,8 +303,8 @@ def _use_ir_only_libraries() -> bool:
     set_env = codegen.set_env
 
     def set_env_if_defined(env_name, env):
-        # an IR-only library is not in the JIT engine, so neither is its environment (the
-        # copies in its callers' modules stay unset, as for any kernel loaded from a cache)
+        # an IR-only library is not in the JIT engine, so neither is its environment: the
+        # kernel it is linked into sets its copy (_Library._set_linked_environments)
         if codegen._engine.get_global_value_address(env_name):
             set_env(env_name, env)
 

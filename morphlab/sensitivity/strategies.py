@@ -260,8 +260,8 @@ class Auto(Strategy):
     (the direct method's solves grow with the variables, the adjoint's with the responses; the
     direct method evaluates each variable's explicit part at every step and each response's
     derivative with every variable's, the adjoint those of the variables that are not sections
-    or materials, which share one pass a step). The default is measured (BENCHMARKS.md, cases
-    morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
+    or materials, which share one pass a step). The default is measured (docs/benchmarks-detail.md,
+    cases morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
     variable and one to three responses, the two tie at six, direct is faster at twelve; with
     five variables the adjoint is faster up to the fifteen responses measured, and at every
     count of variables with three responses (the morphing study's 5, the flexible pendulum's
