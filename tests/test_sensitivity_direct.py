@@ -330,6 +330,72 @@ def test_chunking_does_not_change_the_sensitivities(monkeypatch, name, scheme):
 
 
 @pytest.mark.parametrize("name", CASES)
+def test_sensitivities_beside_the_primal_are_the_same_bits(monkeypatch, name):
+    """With ``overlap`` the design data and each chunk's sensitivities are formed in the
+    worker thread while the primal's next chunk runs: the same calls on the same data, in the
+    same order, so the gradients and histories equal those formed in the caller's thread bit
+    for bit, in both variants, on dense and sparse factors. Short chunks (4 steps) and no
+    room for records in flight make the run hand over several chunks and wait for the worker
+    whenever it is behind (``OVERLAP_BYTES`` 0)."""
+    monkeypatch.setattr(morphlab.sensitivity.direct, "OVERLAP_STEPS", 4)
+    monkeypatch.setattr(morphlab.sensitivity.direct, "OVERLAP_BYTES", 0)
+    build, p0, resp = responses_for(name)
+    for dense_max in (1000, 0):
+        for reuse in (True, False):
+            runs = [ml.sensitivities(build, p0, resp, store="all", dense_max=dense_max,
+                                     method=Direct(reuse=reuse, overlap=overlap), **RUN)
+                    for overlap in (False, True)]
+            assert [r.stats["overlap"] for r in runs] == [False, True]
+            assert runs[1].gradients == runs[0].gradients, (dense_max, reuse)
+            for key in ("q", "v", "a", "lam"):
+                np.testing.assert_array_equal(runs[1].state[key], runs[0].state[key])
+            assert runs[1].timing["sensitivity"] > 0.0
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_responses_by_their_vjp_equal_their_complex_evaluation(name):
+    """Responses with a ``vjp`` are differentiated by the chain rule over the sensitivity
+    histories, one pass each (``Direct(vjp=True)``, the default), instead of being evaluated
+    on every variable's complex result: both are the same linearization of the same
+    histories, summed in another order, so they agree to round-off (measured 2.5e-14 of the
+    largest entry on the morphing study; 1e-11 leaves a margin for cancellation in the longer
+    sums), in both variants. A response without a ``vjp`` makes the run evaluate them all."""
+    build, p0, responses = responses_for(name)
+    with_vjp = {k: f for k, f in responses.items() if hasattr(f, "vjp")}
+    assert len(with_vjp) >= 3 and len(with_vjp) < len(responses)
+    for reuse in (True, False):
+        a, b = (ml.sensitivities(build, p0, with_vjp, method=Direct(reuse=reuse, vjp=v), **RUN)
+                for v in (True, False))
+        assert a.stats["responses_by_vjp"] and not b.stats["responses_by_vjp"]
+        for r in with_vjp:
+            assert a.values[r] == pytest.approx(b.values[r], rel=1e-13, abs=1e-300), r
+            ga, gb = (np.array([g.gradients[r][v] for v in p0]) for g in (a, b))
+            assert np.max(np.abs(ga - gb)) <= 1e-11 * np.max(np.abs(gb)), (r, ga, gb)
+    mixed = ml.sensitivities(build, p0, responses, method="direct", **RUN)
+    assert not mixed.stats["responses_by_vjp"]
+
+
+def test_an_error_of_the_work_beside_is_raised_and_the_worker_freed():
+    """The design data formed in the worker thread fail (a variable that changes the model's
+    structure): the caller gets that error, not a hang, and the worker thread serves the next
+    gradient."""
+    build, p0, resp = responses_for("pendulum")
+
+    def changes_structure(p):
+        m = build(p)
+        if np.iscomplexobj(p["extra"]) or p["extra"] != 1.0:
+            m.add_rigid_body(mass=1.0, inertia=1.0, position=(0.0, 0.0), name="more")
+        return m
+
+    p = dict(p0, extra=1.0)
+    with pytest.raises(ml.SensitivityError, match="'extra'"):
+        ml.sensitivities(changes_structure, p, resp, method=Direct(overlap=True), **RUN)
+    ok = ml.sensitivities(build, p0, resp, method=Direct(overlap=True), **RUN)
+    ref = ml.sensitivities(build, p0, resp, method=Direct(overlap=False), **RUN)
+    assert ok.gradients == ref.gradients
+
+
+@pytest.mark.parametrize("name", CASES)
 def test_steps_solved_from_python_give_the_sensitivities_of_compiled_steps(name):
     """With every step solved from Python (``compiled_newton=False``) the sensitivity steps
     run as the initial solve's do in a compiled run: the direct method keeps each step until

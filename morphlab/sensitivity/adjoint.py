@@ -40,7 +40,7 @@ from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint_record import AdjointHook, _PythonStep, _Replay
 from .beside import Beside
-from .designs import system_read
+from .designs import data_terms, system_read
 from .histories import to_store
 from .units import BODY_KINDS, bodies_linear, share_units
 
@@ -55,19 +55,6 @@ def _terms(vjps: list[ResponseVJP], ns: np.ndarray, s: System) -> tuple:
         for name, g in vj.over(ns).items():
             out[("q", "v", "a", "lam").index(name)][:, :, r] += g
     return tuple(out)
-
-
-def _data_terms(vjps: list[ResponseVJP], sys0: System, changes: list) -> np.ndarray:
-    """The responses' own derivatives through the system data they read, mapped to the
-    variables with the data's complex-step derivatives (n_x, m); ``changes``: the variables'
-    :class:`~morphlab.sensitivity.designs.Change` (:meth:`~morphlab.sensitivity.designs.
-    Change.data_derivative`)."""
-    out = np.zeros((len(changes), len(vjps)))
-    for r, vj in enumerate(vjps):
-        for key, g in vj.data.items():
-            for i, ch in enumerate(changes):
-                out[i, r] += np.sum(np.real(g) * ch.data_derivative(sys0, key))
-    return out
 
 
 def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Callable[[], tuple],
@@ -166,7 +153,7 @@ def adjoint_run(sys0: System, settings: Settings, responses: dict, design: Calla
         release(hook.records, "adjoint")
     for i in np.flatnonzero(lumped):  # their shares <G, dD/dp_i> (the stiffness's: in shares)
         sh.grad[i] -= PV[PO[i]:PO[i + 1]] @ GD[PP[PO[i]:PO[i + 1]]]
-    grad = sh.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + _data_terms(vjps, sys0, changes)
+    grad = sh.grad + dq0.T @ a.Bq + dv0.T @ a.Bv + data_terms(vjps, sys0, changes)
     total = _time.perf_counter() - t0
     refined = a.refined[np.isfinite(a.refined)]
     stats = {"n_factorizations": res0.n_factorizations, "segment_steps": hook.segment,

@@ -84,6 +84,31 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL["pool"]
 
 
+def in_worker() -> bool:
+    """Is the caller the worker thread (running a piece of work)?"""
+    return getattr(_IN_WORKER, "on", False)
+
+
+def submit(fn: Callable[[], object], context: contextvars.Context | None = None
+           ) -> Future | None:
+    """``fn()`` queued on the worker thread, in ``context`` (default: a copy of the caller's
+    context variables), after the work queued before it; None from the worker thread itself,
+    which would wait for its own thread (a gradient inside a piece of work, say a ``build``
+    that runs one): the caller then runs ``fn`` where it is."""
+    if in_worker():
+        return None
+    ctx = contextvars.copy_context() if context is None else context
+
+    def run():
+        _IN_WORKER.on = True
+        try:
+            return fn()
+        finally:
+            _IN_WORKER.on = False
+
+    return _pool().submit(ctx.run, run)
+
+
 class Beside:
     """``fn()`` computed beside the primal run (module docstring).
 
@@ -112,18 +137,9 @@ class Beside:
 
     def start(self) -> None:
         """Hand the work to the worker thread (once; nothing without ``overlap``, nor from
-        the worker thread itself: a gradient inside a piece of work, say a ``build`` that
-        runs one, would wait for its own thread)."""
-        if (self.overlap and self.future is None and not self._done
-                and not getattr(_IN_WORKER, "on", False)):
-            self.future = _pool().submit(self.context.run, self._run)
-
-    def _run(self):
-        _IN_WORKER.on = True
-        try:
-            return self.fn()
-        finally:
-            _IN_WORKER.on = False
+        the worker thread itself: see :func:`submit`)."""
+        if self.overlap and self.future is None and not self._done:
+            self.future = submit(self.fn, self.context)
 
     def check(self) -> None:
         """Raise the work's error now if it has already failed (between chunks of steps)."""

@@ -146,6 +146,19 @@ class Change:
         return out
 
 
+def data_terms(vjps: list, sys0: System, changes: list) -> np.ndarray:
+    """The responses' own derivatives through the system data they read (``vjps``: their
+    :class:`~morphlab.results.gradients.ResponseVJP`), mapped to the variables with the
+    data's complex-step derivatives (n_x, m); ``changes``: the variables' complex-step
+    :class:`Change` (:meth:`Change.data_derivative`)."""
+    out = np.zeros((len(changes), len(vjps)))
+    for r, vj in enumerate(vjps):
+        for key, g in vj.data.items():
+            for i, ch in enumerate(changes):
+                out[i, r] += np.sum(np.real(g) * ch.data_derivative(sys0, key))
+    return out
+
+
 def change_of(sys0: System, sys_p: System, pert, T0: Times, times: np.ndarray) -> Change:
     """The :class:`Change` of the perturbed system ``sys_p`` (perturbation ``pert``: ``1j *
     CS_STEP`` or a real step), ``T0`` the nominal time values at ``times``."""

@@ -149,6 +149,12 @@ def _check_refine(owner: str, refine) -> None:
         raise SensitivityError(f"{owner}: refine must be an integer >= 0, got {refine!r}")
 
 
+def _check_overlap(owner: str, overlap) -> None:
+    if overlap not in (None, True, False):
+        raise SensitivityError(f"{owner}: overlap must be True, False or None, got "
+                               f"{overlap!r}")
+
+
 @dataclass(frozen=True)
 class Direct(Strategy):
     """Direct differentiation (``docs/theory.md`` §6; :mod:`morphlab.sensitivity.direct`).
@@ -166,12 +172,27 @@ class Direct(Strategy):
         converged state and refines (exact to round-off).
     refine : int
         Refinement sweeps of the exact variant.
+    overlap : bool, optional
+        Form the variables' changes and pseudo-load data, and the sensitivities of each
+        chunk of steps, in a thread while the primal's compiled steps go on
+        (:mod:`morphlab.sensitivity.direct`: the same results, bit for bit; the wall time of
+        the primal and the sensitivities' larger share, the other hidden, at the price of some
+        more CPU time); None (the default): where a core is idle when the gradient starts
+        (:func:`~morphlab.sensitivity.beside.spare_core`).
+    vjp : bool
+        Where every response has a ``vjp`` (the factories of :mod:`morphlab.responses`),
+        differentiate each by the chain rule over the sensitivity histories, one pass per
+        response (:func:`~morphlab.sensitivity.direct.response_gradients`); False, or a
+        response without one: evaluate each response on every variable's complex result
+        (one pass per response and variable). The two agree to round-off.
     """
 
     partials: str = "complex-step"
     step: float = 1e-6
     reuse: bool = True
     refine: int = 1
+    overlap: bool | None = None
+    vjp: bool = True
 
     complex_results = True
 
@@ -185,20 +206,30 @@ class Direct(Strategy):
                                    f"'forward-difference', got {self.partials!r}")
         _check_step(self.step)
         _check_refine("Direct", self.refine)
+        _check_overlap("Direct", self.overlap)
+        if not isinstance(self.vjp, bool):
+            raise SensitivityError(f"Direct: vjp must be True or False, got {self.vjp!r}")
 
     def run(self, setup: Setup) -> Run:
-        cs = setup.complex_changes  # the perturbed results' systems (and the partials)
-        T0 = time_table(setup.sys0, setup.times)
-        if self.partials == "complex-step":
-            chs, pert = cs, np.full(len(setup.names), 1j * CS_STEP)
-        else:
-            steps = relative_steps(setup.p0, setup.names, self.step)
-            chs = changes(setup.build, setup.p0, setup.names, setup.sys0, setup.times, steps)
-            pert = np.array([steps[v] for v in setup.names])
-        ps, dq0, dv0 = design_data(setup, chs, pert, T0)
-        kept = to_store(setup.store, setup.responses, setup.sys0, setup.settings)
-        return Run(*direct_run(setup.sys0, setup.settings, setup.complex_systems, ps, dq0, dv0,
-                               kept, reuse=self.reuse, refine=self.refine,
+        def design():  # the first piece of the sensitivity work (DirectHook)
+            cs = setup.complex_changes  # the perturbed results' systems (and the partials)
+            T0 = time_table(setup.sys0, setup.times)
+            if self.partials == "complex-step":
+                chs, pert = cs, np.full(len(setup.names), 1j * CS_STEP)
+            else:
+                steps = relative_steps(setup.p0, setup.names, self.step)
+                chs = changes(setup.build, setup.p0, setup.names, setup.sys0, setup.times,
+                              steps)
+                pert = np.array([steps[v] for v in setup.names])
+            kept = to_store(setup.store, setup.responses, setup.sys0, setup.settings)
+            return (*design_data(setup, chs, pert, T0), kept)
+
+        overlap = spare_core() if self.overlap is None else self.overlap
+        by_vjp = self.vjp and all(hasattr(fn, "vjp") for fn in setup.responses.values())
+        return Run(*direct_run(setup.sys0, setup.settings, design,
+                               lambda: setup.complex_changes,
+                               responses=setup.responses if by_vjp else None,
+                               reuse=self.reuse, refine=self.refine, overlap=overlap,
                                progress=setup.progress))
 
 
@@ -235,9 +266,7 @@ class Adjoint(Strategy):
         if not (isinstance(self.memory, int) and self.memory > 0):
             raise SensitivityError(f"Adjoint: memory must be a positive integer of bytes, got "
                                    f"{self.memory!r}")
-        if self.overlap not in (None, True, False):
-            raise SensitivityError(f"Adjoint: overlap must be True, False or None, got "
-                                   f"{self.overlap!r}")
+        _check_overlap("Adjoint", self.overlap)
 
     def run(self, setup: Setup) -> Run:
         def design():  # what the sweep reads of the variables (module beside)
