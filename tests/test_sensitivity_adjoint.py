@@ -241,12 +241,12 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
 
 
 def test_auto_chooses_by_variables_per_response_and_vjp(monkeypatch):
-    """One usable core (the direct method's work cannot run beside the primal): more than
+    """No core idle (the direct method's work would not run beside the primal): more than
     ``crossover`` variables per response and every response with a vjp: the adjoint; a
     response without one, or fewer variables per response: direct. The default crossover
     (0.15, measured) takes the adjoint for this model's 6 variables and 3 responses and for
     one variable with them, the direct method for one variable with 9 responses."""
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "usable_cores", lambda: 1)
+    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: False)
     build, p0, resp = adjoint_responses("pendulum")
     per = len(p0) / len(resp)
     eager = ml.Auto(crossover=0.5 * per)
@@ -265,25 +265,22 @@ def test_auto_chooses_by_variables_per_response_and_vjp(monkeypatch):
 
 
 def test_auto_takes_the_direct_method_beside_the_primal_for_few_variables(monkeypatch):
-    """Two usable cores or more (or ``Direct(overlap=True)``): the direct method's work can
-    run beside the primal, so for at most ``beside`` variables (20, measured) it is taken
-    whatever the responses; above ``beside`` the crossover decides as on one core. The choice
-    reads the cores, not their load: a busy machine (no core idle) makes the same choice,
-    and the direct method then runs without the thread (``overlap`` left to the run)."""
+    """A core idle (or ``Direct(overlap=True)``): the direct method's work runs beside the
+    primal, so for at most ``beside`` variables (20, measured) it is taken whatever the
+    responses, and it runs with the overlap decided when it was chosen; above ``beside`` the
+    crossover decides as without a spare core."""
     build, p0, resp = adjoint_responses("pendulum")
     chosen = []
     monkeypatch.setattr(morphlab.sensitivity.strategies.Direct, "run",
                         lambda self, setup: chosen.append(self) or _stop())
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "usable_cores", lambda: 2)
+    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: True)
     assert ml.Auto().beside == 20 and len(p0) == 6
-    for idle in (True, False):
-        monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda i=idle: i)
-        with pytest.raises(_Stop):
-            ml.sensitivities(build, p0, resp, **RUN)
-        assert chosen[-1].overlap is None
+    with pytest.raises(_Stop):
+        ml.sensitivities(build, p0, resp, **RUN)
+    assert chosen[-1].overlap is True
     few = ml.Auto(beside=5)  # 6 variables > 5: the crossover's choice, the adjoint
     assert ml.sensitivities(build, p0, resp, method=few, **RUN).method == "adjoint"
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "usable_cores", lambda: 1)
+    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: False)
     forced = ml.Auto(direct=ml.Direct(overlap=True))
     with pytest.raises(_Stop):
         ml.sensitivities(build, p0, resp, method=forced, **RUN)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import abc
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import NamedTuple
 
@@ -34,7 +34,7 @@ from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
 from .adjoint import adjoint_run
-from .beside import spare_core, usable_cores
+from .beside import spare_core
 from .designs import CS_STEP, changes, compile_perturbed, pseudo_data, relative_steps
 from .direct import direct_run
 from .histories import HISTORIES, to_store
@@ -289,16 +289,12 @@ class Auto(Strategy):
     The direct method's work grows with the variables, the adjoint's with the responses
     (direct: each variable's explicit part and solve at every step; adjoint: one transposed
     solve a step per response, the variables that are not sections or materials evaluated
-    at every step). On a machine of two usable cores or more
-    (:func:`~morphlab.sensitivity.beside.usable_cores`; or with ``direct.overlap`` True) the
-    direct method's work can run beside the primal, where it costs little wall time while it
-    is no larger than the primal's: then the direct method for at most ``beside`` variables.
-    The choice reads the cores, not their load, so that it is the same from run to run (the
-    two methods agree to round-off, not to the bit); whether the work then runs beside is
-    decided when it runs (``Direct.overlap``; the same bits either way). Otherwise, and
-    above that, the adjoint when every response has a ``vjp`` and there are more than
-    ``crossover`` design variables per response; the direct method where a response has
-    none. The defaults are measured
+    at every step). Where a core is idle (:func:`~morphlab.sensitivity.beside.spare_core`,
+    or ``direct.overlap`` True) the direct method's work runs beside the primal and costs
+    little wall time while it is no larger than the primal's: then the direct method for at
+    most ``beside`` variables. Otherwise, and above that, the adjoint when every response
+    has a ``vjp`` and there are more than ``crossover`` design variables per response; the
+    direct method where a response has none. The defaults are measured
     (docs/benchmarks-detail.md, cases morphing, variables and pendulum): beside the primal,
     the direct method is the faster on the 240-element skin up to 20 variables (the adjoint
     from about 24), on the morphing study with 5 and 13 and with one to fifteen responses;
@@ -322,17 +318,14 @@ class Auto(Strategy):
 
     def choose(self, setup: Setup) -> Strategy:
         has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
-        # whether the direct method's work can run beside the primal on this machine: its
-        # usable cores, not their load at this moment, so that the choice (and with it the
-        # gradient's last bits) does not change with the load; whether it then runs beside
-        # is decided when it runs (Direct's overlap), which leaves the bits as they are
-        beside = usable_cores() >= 2 if self.direct.overlap is None else self.direct.overlap
+        overlap = spare_core() if self.direct.overlap is None else self.direct.overlap
+        direct = replace(self.direct, overlap=overlap)  # as decided here, once
         n_x = len(setup.names)
-        if not has_vjp or (beside and n_x <= self.beside):
-            return self.direct
+        if not has_vjp or (overlap and n_x <= self.beside):
+            return direct
         if n_x > self.crossover * len(setup.responses):
             return self.adjoint
-        return self.direct
+        return direct
 
     def run(self, setup: Setup) -> Run:
         return self.choose(setup).run(setup)
