@@ -14,7 +14,6 @@ import pytest
 from test_sensitivity_direct import CASES, RUN, responses_for
 
 import morphlab as ml
-import morphlab.sensitivity.strategies
 from morphlab.results.gradients import ResponseVJP
 from morphlab.sensitivity.units import BODY_KINDS
 
@@ -240,13 +239,11 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
             assert diff <= (1e-13 if name == "pendulum" else 1e-9) * scale, (r, v, diff)
 
 
-def test_auto_chooses_by_variables_per_response_and_vjp(monkeypatch):
-    """No core idle (the direct method's work would not run beside the primal): more than
-    ``crossover`` variables per response and every response with a vjp: the adjoint; a
-    response without one, or fewer variables per response: direct. The default crossover
-    (0.15, measured) takes the adjoint for this model's 6 variables and 3 responses and for
-    one variable with them, the direct method for one variable with 9 responses."""
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: False)
+def test_auto_chooses_by_variables_per_response_and_vjp():
+    """More than ``crossover`` variables per response and every response with a vjp: the
+    adjoint; a response without one, or fewer variables per response: direct. The default
+    crossover (0.15, measured) takes the adjoint for this model's 6 variables and 3 responses
+    and for one variable with them, the direct method for one variable with 9 responses."""
     build, p0, resp = adjoint_responses("pendulum")
     per = len(p0) / len(resp)
     eager = ml.Auto(crossover=0.5 * per)
@@ -262,39 +259,6 @@ def test_auto_chooses_by_variables_per_response_and_vjp(monkeypatch):
     assert ml.sensitivities(one_build, one, resp, **RUN).method == "adjoint"
     nine = {f"{k}_{i}": f for i in range(3) for k, f in resp.items()}
     assert ml.sensitivities(one_build, one, nine, **RUN).method == "direct"
-
-
-def test_auto_takes_the_direct_method_beside_the_primal_for_few_variables(monkeypatch):
-    """A core idle (or ``Direct(overlap=True)``): the direct method's work runs beside the
-    primal, so for at most ``beside`` variables (20, measured) it is taken whatever the
-    responses, and it runs with the overlap decided when it was chosen; above ``beside`` the
-    crossover decides as without a spare core."""
-    build, p0, resp = adjoint_responses("pendulum")
-    chosen = []
-    monkeypatch.setattr(morphlab.sensitivity.strategies.Direct, "run",
-                        lambda self, setup: chosen.append(self) or _stop())
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: True)
-    assert ml.Auto().beside == 20 and len(p0) == 6
-    with pytest.raises(_Stop):
-        ml.sensitivities(build, p0, resp, **RUN)
-    assert chosen[-1].overlap is True
-    few = ml.Auto(beside=5)  # 6 variables > 5: the crossover's choice, the adjoint
-    assert ml.sensitivities(build, p0, resp, method=few, **RUN).method == "adjoint"
-    monkeypatch.setattr(morphlab.sensitivity.strategies, "spare_core", lambda: False)
-    forced = ml.Auto(direct=ml.Direct(overlap=True))
-    with pytest.raises(_Stop):
-        ml.sensitivities(build, p0, resp, method=forced, **RUN)
-    assert chosen[-1].overlap is True
-    with pytest.raises(ml.SensitivityError, match="beside"):
-        ml.Auto(beside=-1)
-
-
-class _Stop(Exception):
-    pass
-
-
-def _stop():
-    raise _Stop
 
 
 @pytest.mark.parametrize("name", CASES)

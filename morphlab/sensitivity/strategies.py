@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import abc
 import time as _time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
@@ -284,48 +284,29 @@ class Adjoint(Strategy):
 
 @dataclass(frozen=True)
 class Auto(Strategy):
-    """Direct differentiation or the adjoint, whichever costs less here.
-
-    The direct method's work grows with the variables, the adjoint's with the responses
-    (direct: each variable's explicit part and solve at every step; adjoint: one transposed
-    solve a step per response, the variables that are not sections or materials evaluated
-    at every step). Where a core is idle (:func:`~morphlab.sensitivity.beside.spare_core`,
-    or ``direct.overlap`` True) the direct method's work runs beside the primal and costs
-    little wall time while it is no larger than the primal's: then the direct method for at
-    most ``beside`` variables. Otherwise, and above that, the adjoint when every response
-    has a ``vjp`` and there are more than ``crossover`` design variables per response; the
-    direct method where a response has none. The defaults are measured
-    (docs/benchmarks-detail.md, cases morphing, variables and pendulum): beside the primal,
-    the direct method is the faster on the 240-element skin up to 20 variables (the adjoint
-    from about 24), on the morphing study with 5 and 13 and with one to fifteen responses;
-    the adjoint on the flexible pendulum's 32 variables. ``crossover`` was measured with no
-    work beside the primal (docs/benchmarks-history.md): on the skin, with one variable
-    the adjoint faster for one to three responses, the two tied at six, direct faster at
-    twelve; with five variables the adjoint up to the fifteen responses measured."""
+    """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
+    response has a ``vjp`` and there are more than ``crossover`` design variables per response
+    (the direct method's solves grow with the variables, the adjoint's with the responses; the
+    direct method evaluates each variable's explicit part at every step and each response's
+    derivative with every variable's, the adjoint those of the variables that are not sections
+    or materials, which share one pass a step). The default is measured (docs/benchmarks-detail.md,
+    cases morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
+    variable and one to three responses, the two tie at six, direct is faster at twelve; with
+    five variables the adjoint is faster up to the fifteen responses measured, and at every
+    count of variables with three responses (the morphing study's 5, the flexible pendulum's
+    32 with one)."""
 
     crossover: float = 0.15
-    beside: int = 20
     direct: Direct = field(default_factory=Direct)
     adjoint: Adjoint = field(default_factory=Adjoint)
 
     name = "auto"
 
-    def __post_init__(self):
-        if not (isinstance(self.beside, int) and not isinstance(self.beside, bool)
-                and self.beside >= 0):
-            raise SensitivityError(f"Auto: beside must be an integer >= 0, got "
-                                   f"{self.beside!r}")
-
     def choose(self, setup: Setup) -> Strategy:
         has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
-        overlap = spare_core() if self.direct.overlap is None else self.direct.overlap
-        direct = replace(self.direct, overlap=overlap)  # as decided here, once
-        n_x = len(setup.names)
-        if not has_vjp or (overlap and n_x <= self.beside):
-            return direct
-        if n_x > self.crossover * len(setup.responses):
+        if has_vjp and len(setup.names) > self.crossover * len(setup.responses):
             return self.adjoint
-        return direct
+        return self.direct
 
     def run(self, setup: Setup) -> Run:
         return self.choose(setup).run(setup)
