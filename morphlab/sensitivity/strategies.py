@@ -287,9 +287,15 @@ class Auto(Strategy):
     """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
     response has a ``vjp`` and there are more than ``crossover`` design variables per response
     (the direct method's solves grow with the variables, the adjoint's with the responses; the
-    direct method evaluates each variable's explicit part at every step and each response's
-    derivative with every variable's, the adjoint those of the variables that are not sections
-    or materials, which share one pass a step). The default is measured (docs/benchmarks-detail.md,
+    direct method evaluates each variable's explicit part at every step, the adjoint those of
+    the variables that are not sections or materials, which share one pass a step). The
+    choice reads the model, not the machine: with its work beside the primal on an idle core
+    (``Direct(overlap=...)``) the direct method is often the faster in wall time up to some
+    twenty variables (docs/benchmarks-detail.md), but a choice by the load of the moment would
+    change a gradient's last bits from run to run (the two methods agree to round-off), and on
+    a busy machine the direct method runs without the thread and costs its CPU time, about
+    two primal runs with five variables. The default is measured without that thread (the
+    record of commit e916c0c, docs/benchmarks-detail.md as of e94e51a;
     cases morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
     variable and one to three responses, the two tie at six, direct is faster at twelve; with
     five variables the adjoint is faster up to the fifteen responses measured, and at every
