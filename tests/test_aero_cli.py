@@ -2,9 +2,12 @@
 
 import json
 
+import pytest
+
 from morphlab.cli import main
 
 
+@pytest.mark.slow
 def test_morphing_command_writes_the_flight_loads(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["morphing", "--out", str(out), "--quick", "--no-timing"]) == 0

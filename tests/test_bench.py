@@ -366,6 +366,7 @@ def test_peak_memory_is_the_childs_own():
     assert child < 200.0  # 256 MiB or more if the parent's peak were inherited
 
 
+@pytest.mark.slow
 def test_quick_cases_run_end_to_end(tmp_path):
     """The startup case (fresh processes, filled cache) and the pendulum (gradients in one
     process), reduced, into a record and a page: seconds once the kernels are cached."""

@@ -9,6 +9,7 @@ import pytest
 from morphlab.cli import main
 
 
+@pytest.mark.slow
 def test_morphing_writes_tables_figures_and_json(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["morphing", "--out", str(out), "--quick"]) == 0

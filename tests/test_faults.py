@@ -155,6 +155,7 @@ def test_results_move_into_an_existing_folder(tmp_path, monkeypatch, capsys):
 
 
 # ---- files
+@pytest.mark.slow
 def test_damaged_result_files_raise_format_error(tmp_path):
     """A saved Result with bits flipped at 300 positions spread over the whole file (headers,
     data, directory): bitwise the same result or FormatError naming the file, never another

@@ -73,6 +73,7 @@ def _run(tmp_path, jobs: list[str], slow_index: bool = False) -> list[dict]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="no flock: no locks across processes")
 def test_two_processes_compile_a_signature_once(tmp_path):
     (tmp_path / "lockmod.py").write_text(_MODULE)
@@ -83,6 +84,7 @@ def test_two_processes_compile_a_signature_once(tmp_path):
     assert a["values"] == b["values"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="no flock: no locks across processes")
 def test_signatures_added_at_once_all_stay_in_the_cache(tmp_path):
     """Two processes add different signatures of one kernel at once: the cache index keeps

@@ -138,6 +138,7 @@ def _child(tmp_path, cache, calls: str, ir_only: bool = True) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_a_later_process_links_the_cached_ir_into_a_new_kernel(tmp_path):
     (tmp_path / "irmod.py").write_text(_MODULE)
     cache = tmp_path / "cache"
@@ -154,6 +155,7 @@ def test_a_later_process_links_the_cached_ir_into_a_new_kernel(tmp_path):
     assert (b["first"], b["third"]) == (ref["first"], ref["third"])  # the same bits
 
 
+@pytest.mark.slow
 def test_a_cache_filled_by_numbas_own_libraries_is_linked_as_well(tmp_path):
     """A cache written without IR-only libraries (an older morphlab) holds inner kernels as
     object code with their IR beside it: a new kernel links that IR."""

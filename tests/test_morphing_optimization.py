@@ -61,6 +61,7 @@ def test_clearance_gradient_against_central_differences():
         assert g == pytest.approx(f, rel=1e-5, abs=1e-9), v
 
 
+@pytest.mark.slow
 def test_optimum_is_better_feasible_and_verified():
     """SLSQP with exact gradients over the 13 variables (a short run): a lower RMS shape error
     than the start with every constraint satisfied, and an independent re-simulation of the

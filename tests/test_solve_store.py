@@ -127,6 +127,7 @@ def test_an_interrupt_carries_the_converged_steps(how):
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
 
 
+@pytest.mark.slow
 def test_sigint_from_outside_during_compiled_steps_is_a_clean_interrupt(tmp_path):
     """A real Ctrl-C from another process while the compiled Newton loop runs: the run ends
     with Interrupted and its partial result, never a SystemError of the compiled call."""

@@ -85,6 +85,7 @@ def quadrature_indices(task, k: int):
     return first, total
 
 
+@pytest.mark.slow
 def test_simulation_indices_against_quadrature():
     task = SimulationTask(cantilever, RESPONSES, SETTINGS)
     first, total = quadrature_indices(task, 6)

@@ -156,6 +156,7 @@ def _same(a, b) -> bool:
     return a == b
 
 
+@pytest.mark.slow
 def test_bitwise_equal_on_a_dask_cluster():
     """Two worker processes of a LocalCluster against this process: every number of every
     result the same bit for bit, multi-start optimizations included (about 10 s: the

@@ -22,6 +22,7 @@ from morphlab.morphing import optimization as opt
 SETTINGS = dict(le.SETTINGS, dt=1e-3)  # 150 steps, as notebook 09 in its quick mode
 
 
+@pytest.mark.slow
 def test_form_design_point_of_the_stress_against_finite_differences():
     p = opt.start()
     rp = opt.reliability_problem(p, settings=SETTINGS)

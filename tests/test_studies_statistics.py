@@ -33,6 +33,7 @@ def _coverages():
     return hits_boot / REPEATS, hits_chi2 / REPEATS
 
 
+@pytest.mark.slow
 def test_std_interval_holds_for_a_skewed_response():
     boot, chi2 = _coverages()
     # binomial standard error of a coverage estimate from 200 samples: sqrt(.95 .05 / 200)

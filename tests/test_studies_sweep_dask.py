@@ -121,6 +121,7 @@ def lost_cluster_scenario(client, folder, checkpoint=None):
 
 
 # ---------------------------------------------------------------------------------- tests
+@pytest.mark.slow
 def test_a_design_that_kills_every_worker_fails_alone_and_the_others_finish(tmp_path):
     """The killer costs one worker per attempt: its first run (in a batch with a neighbour)
     and ``retries`` reruns alone, whatever Dask's own ``allowed-failures`` (3) would allow;
@@ -140,6 +141,7 @@ def test_a_design_that_kills_every_worker_fails_alone_and_the_others_finish(tmp_
         assert task.calls(t) <= 2  # a neighbour of the killer reruns once, alone
 
 
+@pytest.mark.slow
 def test_retries_bound_the_deaths_and_a_culprit_alone_is_known_at_once(tmp_path):
     """One design per job on single-thread workers: each job is alone on its worker, so with
     ``retries=0`` the killer fails after one death and no other design is touched."""
@@ -153,6 +155,7 @@ def test_retries_bound_the_deaths_and_a_culprit_alone_is_known_at_once(tmp_path)
     assert all(task.calls(d["t"]) == 1 for d in DESIGNS)
 
 
+@pytest.mark.slow
 def test_a_cluster_that_lost_all_its_workers_ends_with_the_rows_so_far(tmp_path):
     """Workers without nannies: the killer takes both; after ``worker_timeout`` seconds
     without workers the sweep raises SweepAborted carrying the finished rows, which the
@@ -188,6 +191,7 @@ def test_no_workers_at_all_times_out_instead_of_waiting_forever():
     assert len(info.value.partial) == 0 and info.value.indices.size == 0
 
 
+@pytest.mark.slow
 def test_streamed_rows_on_dask_equal_the_table(tmp_path):
     cluster, client = local_cluster()
     with cluster, client:

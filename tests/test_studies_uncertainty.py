@@ -136,6 +136,7 @@ def run_values(p):
     return {k: float(np.real(f(res))) for k, f in RESPONSES.items()}
 
 
+@pytest.mark.slow
 def test_fosm_matches_monte_carlo_on_a_nonlinear_simulation():
     sens = ml.sensitivities(tip_loaded_cantilever, NOMINAL, RESPONSES, **SETTINGS)
     res = fosm(sens, std=STD, allowables={"stress": (None, 27.0)})
