@@ -222,6 +222,20 @@ def test_a_record_the_summary_cannot_read_is_named_not_hidden():
     assert rows["pendulum"][0][1].startswith("not summarized (KeyError")
 
 
+def test_each_run_records_and_shows_its_machines_speed():
+    """The machine's speed (a Python loop's time per iteration) is measured into every entry
+    and shown with its runs on both pages; a record taken before it was renders without it."""
+    ns = record.machine()["python_loop_ns"]
+    assert 1.0 < ns < 5000.0  # nanoseconds an iteration: tens on a current machine
+    fast = {**CTX, "machine": {**CTX["machine"], "python_loop_ns": 57.2}}
+    rec = record.merge(record.empty(), {"pendulum": record.entry(
+        RESULTS["pendulum"][0], command="python -m morphlab.bench --cases pendulum",
+        repeats=3, quick=False, seconds=12.0, context=fast)})
+    assert "Python loop 57 ns" in report.render_detail(rec)
+    assert "2 cores, Python loop 57 ns, load" in report.render(rec)
+    assert "Python loop" not in report.render_detail(full_record())  # CTX: no speed
+
+
 def test_targets_are_judged_on_the_right_side():
     assert report.check("compile.quickstart", 7.9).startswith("≤ 8 ✓")
     assert report.check("compile.quickstart", 8.1).startswith("≤ 8 ✗")

@@ -51,6 +51,10 @@ process; a ratio is formed from medians of one run. ✓ / ✗: the target of the
 met / not met. Every table in full, with the min–max of the runs, the compile time per kernel
 and each run's machine and load: [docs/benchmarks-detail.md](docs/benchmarks-detail.md);
 earlier rounds, on older code: [docs/benchmarks-history.md](docs/benchmarks-history.md).
+Machines of one CPU model can differ in speed by a factor of two or more (virtual machines
+especially): each run gives its machine's time for one iteration of a plain Python
+loop ("Python loop"), and times of runs whose loops differ are not comparable; ratios
+measured in one run are.
 """
 
 DETAIL_HEADER = """# Benchmarks in detail
@@ -97,7 +101,8 @@ def _meta(case: str, e: dict) -> list[str]:
     date = str(e.get("date", "?")).replace("T", " ").replace("+00:00", " UTC")
     lines = [f"`{reproduce(case, e)}` ({e.get('seconds', 0):.0f} s) · {date} · "
              f"commit {commit} · {m.get('cpu_model', '?')}, {m.get('usable_cores', '?')} of "
-             f"{m.get('cores', '?')} cores{load} · Python {m.get('python', '?')}, numba "
+             f"{m.get('cores', '?')} cores{_speed(m, ', ')}{load} · Python "
+             f"{m.get('python', '?')}, numba "
              f"{v.get('numba', '?')}, numpy {v.get('numpy', '?')}", ""]
     if e.get("quick"):
         lines += ["**Quick run** (reduced sizes, `--quick`): not the reference figures.", ""]
@@ -132,7 +137,7 @@ def render(record: dict) -> str:
         commit = (e.get("commit") or "unknown")[:7] + ("+" if e.get("dirty") else "")
         runs.append(f"| {case} | `{reproduce(case, e)}`{note} | {e.get('seconds', 0):.0f} s | "
                     f"{commit} | {str(e.get('date', '?'))[:10]}, {m.get('usable_cores', '?')} "
-                    f"cores, load {_load(e)} |")
+                    f"cores{_speed(m, ', ')}, load {_load(e)} |")
     lines += ["", "Each case as it was last measured (commit: `+` with uncommitted changes; "
               "load: the one-minute load average before the run):", ""] + runs
     if other:
@@ -144,6 +149,13 @@ def _cases(record: dict) -> tuple[list, list]:
     """The record's cases this suite renders, in the page's order, and the others."""
     return ([c for c in DESCRIPTIONS if c in record["cases"]],
             [c for c in record["cases"] if c not in DESCRIPTIONS])
+
+
+def _speed(m: dict, sep: str) -> str:
+    """The machine's speed as recorded (``record.python_loop_ns``); nothing for a record
+    taken before it was."""
+    ns = m.get("python_loop_ns")
+    return f"{sep}Python loop {ns:.0f} ns" if ns else ""
 
 
 def _load(e: dict) -> str:
