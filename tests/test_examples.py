@@ -62,18 +62,14 @@ def load_scale() -> float:
 def speed_scale() -> float:
     """The allowance for a slower machine: the best of three morphing primal runs (what most
     of the notebooks' time goes to) over :data:`REF_PRIMAL_S`, at least 1. The workload
-    itself is timed: machines whose Python loops and matrix products run equally fast can
-    differ in it by a factor of two or more."""
+    itself is timed: machines of one CPU model and core count have run it a factor of two or
+    more apart."""
     from morphlab.bench.gradients import _primal
     from morphlab.morphing import leading_edge as le
+    from morphlab.studies.timing import timed
 
     primal = _primal(le.build, le.DEFAULTS, le.RESPONSES, le.SETTINGS)  # the bench's primal
-    primal()  # the kernels loaded (or compiled)
-    best = math.inf
-    for _ in range(3):
-        t0 = time.perf_counter()
-        primal()
-        best = min(best, time.perf_counter() - t0)
+    best = timed(primal, 3)[0]["min"]  # after a first call that loads (or compiles) kernels
     return max(1.0, best / REF_PRIMAL_S)
 
 

@@ -15,7 +15,6 @@ import os
 import platform
 import subprocess
 import tempfile
-import time
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -47,14 +46,15 @@ def python_loop_ns(n: int = 200_000, rounds: int = 5) -> float:
     work; tens of milliseconds in all). The CPU model does not tell two machines apart: virtual
     machines of one model have run the same code at speeds a factor of two or more apart,
     compiled kernels and Python alike, and this figure moves with them."""
-    best = math.inf
-    for _ in range(rounds):
-        t0 = time.perf_counter()
+    from ..studies.timing import timed
+
+    def loop():
         total = 0
         for i in range(n):
             total += i
-        best = min(best, time.perf_counter() - t0)
-    return best / n * 1e9
+        return total
+
+    return timed(loop, rounds)[0]["min"] / n * 1e9
 
 
 def machine() -> dict:
