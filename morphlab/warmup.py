@@ -74,9 +74,13 @@ def warmup_for(build, p0: dict, responses: dict, settings, methods=("direct",),
     say = report or (lambda t: print(t, file=sys.stderr, flush=True))
     short = Settings.of(settings, t_end=steps * Settings.of(settings).dt)
     groups = ["time loop", *methods]
-    total = sum(ESTIMATES.get(g, 20.0) for g in groups)
-    say(f"morphlab warmup: {', '.join(groups)} (at most about {total:.0f} CPU-s on a 2-core "
-        "reference machine when nothing is cached)")
+    known = [g for g in groups if g in ESTIMATES]
+    about = (f" (about {sum(ESTIMATES[g] for g in known):.0f} CPU-s on the 2-core reference "
+             "machine of the benchmarks when nothing is cached"
+             + ("" if len(known) == len(groups) else
+                f"; no estimate for {', '.join(g for g in groups if g not in known)}") + ")"
+             if known else "")
+    say(f"morphlab warmup: {', '.join(groups)}{about}")
     seconds = {}
     for group in groups:
         say(f"morphlab warmup: {group}")

@@ -50,14 +50,15 @@ RESULTS = {
     "compile": ({"main_command": "morphlab morphing --out DIR",
                  "errors": {"adjoint": "RuntimeError: scenario 'adjoint' failed (status 1): "
                                        + "x" * 600 + " ZeroDivisionError: division by zero"},
-                 "scenarios": {"quickstart": scenario(17.3, "quickstart"),
+                 "scenarios": {"quickstart": {**scenario(17.3, "quickstart"),
+                                              "notice_estimate_cpu_s": 33.3},
                                "direct": {**scenario(38.1, "direct"),
                                           "method_cpu_s": st(20.8)},
                                "every-item": {**scenario(26.4, "every-item"),
                                               "kinds": ["rigid body", "beam"]},
                                "main-command": scenario(61.7, "main-command")}},
-                ["17.3", "20.8", "26.4", "61.7", "steps.run_steps", "≤ 8 ✗", "≤ 10 ✗",
-                 "≤ 15 ✗", "≤ 60 ✗", "Scenario adjoint failed: RuntimeError",
+                ["17.3", "20.8", "26.4", "61.7", "steps.run_steps", "notice's estimate", "33.3",
+                 "≤ 8 ✗", "≤ 10 ✗", "≤ 15 ✗", "≤ 60 ✗", "Scenario adjoint failed: RuntimeError",
                  "… xxx", "ZeroDivisionError: division by zero"]),
     "startup": ({"import_cpu_s": st(0.647), "import_wall_s": st(0.851),
                  "first_result_cpu_s": st(1.17), "first_result_wall_s": st(1.31),
@@ -223,15 +224,26 @@ def test_a_record_the_summary_cannot_read_is_named_not_hidden():
 
 
 def test_each_run_records_and_shows_its_machines_speed():
-    """The machine's speed (a Python loop's time per iteration) is measured into every entry
-    and shown with its runs on both pages; a record taken before it was renders without it."""
-    ns = record.machine()["python_loop_ns"]
-    assert 1.0 < ns < 5000.0  # nanoseconds an iteration: tens on a current machine
-    fast = {**CTX, "machine": {**CTX["machine"], "python_loop_ns": 57.2}}
+    """The machine's speed (a Python loop's time per iteration: median and 10th-90th
+    percentiles over two seconds) is measured into every entry and shown with its runs on
+    both pages; a record taken before it was renders without it, one without the spread
+    with the median alone."""
+    m = record.machine()
+    ns, (lo, hi) = m["python_loop_ns"], m["python_loop_ns_p10_p90"]
+    assert 1.0 < lo <= ns <= hi < 5000.0  # nanoseconds an iteration: tens on a current machine
+    median, p10, p90 = record.python_loop_ns(seconds=0.05)
+    assert p10 <= median <= p90
+    fast = {**CTX, "machine": {**CTX["machine"], "python_loop_ns": 57.2,
+                               "python_loop_ns_p10_p90": [36.1, 66.4]}}
     rec = record.merge(record.empty(), {"pendulum": record.entry(
         RESULTS["pendulum"][0], command="python -m morphlab.bench --cases pendulum",
         repeats=3, quick=False, seconds=12.0, context=fast)})
-    assert "Python loop 57 ns" in report.render_detail(rec)
+    assert "Python loop 57 ns (36–66)" in report.render_detail(rec)
+    assert "2 cores, Python loop 57 ns (36–66), load" in report.render(rec)
+    older = {**CTX, "machine": {**CTX["machine"], "python_loop_ns": 57.2}}
+    rec = record.merge(record.empty(), {"pendulum": record.entry(
+        RESULTS["pendulum"][0], command="python -m morphlab.bench --cases pendulum",
+        repeats=3, quick=False, seconds=12.0, context=older)})
     assert "2 cores, Python loop 57 ns, load" in report.render(rec)
     assert "Python loop" not in report.render_detail(full_record())  # CTX: no speed
 

@@ -37,7 +37,9 @@ def test_a_compilation_is_announced_with_progress_and_its_total(capsys):
     err = capsys.readouterr().err
     assert err.count("compiling the numerical kernels of the time loop") == 1
     estimate = ESTIMATES["time loop"]
-    assert f"about {estimate:.0f} CPU-s" in err and str(cache.kernel_cache_dir()) in err
+    assert f"about {estimate:.0f} CPU-s on the 2-core reference machine" in err
+    assert f"{ESTIMATES['time loop, every item kind']:.0f} with every item kind" in err
+    assert str(cache.kernel_cache_dir()) in err
     assert err.count("still compiling") >= 2
     assert "compiled 1 kernels" in err
 

@@ -52,9 +52,10 @@ met / not met. Every table in full, with the min–max of the runs, the compile 
 and each run's machine and load: [docs/benchmarks-detail.md](docs/benchmarks-detail.md);
 earlier rounds, on older code: [docs/benchmarks-history.md](docs/benchmarks-history.md).
 Machines of one CPU model can differ in speed by a factor of two or more (virtual machines
-especially): each run gives its machine's time for one iteration of a plain Python
-loop ("Python loop"), and times of runs whose loops differ are not comparable; ratios
-measured in one run are.
+especially), and one virtual machine's speed can change from second to second: each run gives
+its machine's time for one iteration of a plain Python loop ("Python loop": the median over
+two seconds, the 10th to 90th percentiles in brackets), and times of runs whose loops differ
+are not comparable; ratios measured in one run are.
 """
 
 DETAIL_HEADER = """# Benchmarks in detail
@@ -152,10 +153,14 @@ def _cases(record: dict) -> tuple[list, list]:
 
 
 def _speed(m: dict, sep: str) -> str:
-    """The machine's speed as recorded (``record.python_loop_ns``); nothing for a record
-    taken before it was."""
+    """The machine's speed as recorded (``record.python_loop_ns``: the median, and the 10th
+    to 90th percentiles where recorded); nothing for a record taken before it was."""
     ns = m.get("python_loop_ns")
-    return f"{sep}Python loop {ns:.0f} ns" if ns else ""
+    if not ns:
+        return ""
+    spread = m.get("python_loop_ns_p10_p90")
+    return f"{sep}Python loop {ns:.0f} ns" + (f" ({spread[0]:.0f}–{spread[1]:.0f})"
+                                               if spread else "")
 
 
 def _load(e: dict) -> str:

@@ -117,6 +117,14 @@ def compile(r: dict, check) -> list[str]:  # noqa: A001 - the case's name
         lines.append("| of which in LLVM: its optimization and machine code (the rest: "
                      "Numba's typing and lowering, in Python) | "
                      + " | ".join(llvm(tables[s], names) for s in cols) + " |")
+    if any("notice_estimate_cpu_s" in sc[s] for s in cols):
+        def notice(s: str) -> str:
+            e = sc[s].get("notice_estimate_cpu_s")
+            return "-" if e is None else f"{e:.1f}"
+
+        lines.append("| the compile notice's estimate of all compilations "
+                     "(morphlab.jit.progress.ESTIMATES) | "
+                     + " | ".join(notice(s) for s in cols) + " |")
     return lines + [""]
 
 
