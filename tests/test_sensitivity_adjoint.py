@@ -15,6 +15,7 @@ from test_sensitivity_direct import CASES, RUN, responses_for
 
 import morphlab as ml
 from morphlab.results.gradients import ResponseVJP
+from morphlab.sensitivity import beside
 from morphlab.sensitivity.units import BODY_KINDS
 
 RUN_STEPS = round(RUN["t_end"] / RUN["dt"])
@@ -239,11 +240,13 @@ def test_checkpointed_sweep_gives_the_same_gradients(name):
             assert diff <= (1e-13 if name == "pendulum" else 1e-9) * scale, (r, v, diff)
 
 
-def test_auto_chooses_by_variables_per_response_and_vjp():
-    """More than ``crossover`` variables per response and every response with a vjp: the
-    adjoint; a response without one, or fewer variables per response: direct. The default
-    crossover (0.15, measured) takes the adjoint for this model's 6 variables and 3 responses
-    and for one variable with them, the direct method for one variable with 9 responses."""
+def test_auto_chooses_by_variables_per_response_and_vjp(monkeypatch):
+    """On one usable core: more than ``crossover`` variables per response and every response
+    with a vjp: the adjoint; a response without one, or fewer variables per response: direct.
+    The default crossover (0.15, measured) takes the adjoint for this model's 6 variables and
+    3 responses and for one variable with them, the direct method for one variable with 9
+    responses."""
+    monkeypatch.setattr(beside, "usable_cores", lambda: 1)
     build, p0, resp = adjoint_responses("pendulum")
     per = len(p0) / len(resp)
     eager = ml.Auto(crossover=0.5 * per)
@@ -259,6 +262,33 @@ def test_auto_chooses_by_variables_per_response_and_vjp():
     assert ml.sensitivities(one_build, one, resp, **RUN).method == "adjoint"
     nine = {f"{k}_{i}": f for i in range(3) for k, f in resp.items()}
     assert ml.sensitivities(one_build, one, nine, **RUN).method == "direct"
+
+
+def test_auto_takes_the_direct_method_beside_the_primal_up_to_its_variables(monkeypatch):
+    """With two usable cores the direct method's work runs beside the primal: the direct
+    method up to ``beside_variables`` variables (24, measured), the adjoint beyond, and the
+    adjoint where the direct method may not use the thread (``overlap=False``) or the
+    process only one core. The choice is read from the model and the cores: the same for
+    every call on one machine."""
+    monkeypatch.setattr(beside, "usable_cores", lambda: 2)
+    build, p0, resp = adjoint_responses("pendulum")  # 6 variables, 3 responses, with vjps
+
+    class Seen:  # what choose() reads of a setup: the variables and the responses
+        def __init__(self, n_x):
+            self.names = [f"x{i}" for i in range(n_x)]
+            self.responses = resp
+
+    auto = ml.Auto()
+    assert auto.beside_variables == 24
+    assert auto.choose(Seen(6)).name == "direct" and auto.choose(Seen(24)).name == "direct"
+    assert auto.choose(Seen(25)).name == "adjoint"
+    no_thread = ml.Auto(direct=ml.Direct(overlap=False))
+    assert no_thread.choose(Seen(6)).name == "adjoint"
+    monkeypatch.setattr(beside, "usable_cores", lambda: 1)
+    assert auto.choose(Seen(6)).name == "adjoint"
+    assert ml.sensitivities(build, p0, resp, **RUN).method == "adjoint"
+    monkeypatch.setattr(beside, "usable_cores", lambda: 2)
+    assert ml.sensitivities(build, p0, resp, **RUN).method == "direct"  # the default: auto
 
 
 @pytest.mark.parametrize("name", CASES)

@@ -33,6 +33,7 @@ from ..errors import SensitivityError
 from ..results.result import Result
 from ..solve.settings import Settings
 from ..solve.timeloop import integrate
+from . import beside
 from .adjoint import adjoint_run
 from .beside import spare_core
 from .designs import CS_STEP, changes, compile_perturbed, pseudo_data, relative_steps
@@ -284,35 +285,58 @@ class Adjoint(Strategy):
 
 @dataclass(frozen=True)
 class Auto(Strategy):
-    """Direct differentiation or the adjoint, whichever costs less here: the adjoint when every
-    response has a ``vjp`` and there are more than ``crossover`` design variables per response
-    (the direct method's solves grow with the variables, the adjoint's with the responses; the
+    """Direct differentiation or the adjoint, whichever costs less here.
+
+    The direct method's solves grow with the variables, the adjoint's with the responses; the
     direct method evaluates each variable's explicit part at every step, the adjoint those of
-    the variables that are not sections or materials, which share one pass a step). The
-    choice reads the model, not the machine: with its work beside the primal on an idle core
-    (``Direct(overlap=...)``) the direct method is often the faster in wall time up to some
-    twenty variables (docs/benchmarks-detail.md), but a choice by the load of the moment would
-    change a gradient's last bits from run to run (the two methods agree to round-off), and on
-    a busy machine the direct method runs without the thread and costs its CPU time, about
-    two primal runs with five variables. The default is measured without that thread (the
-    record of commit e916c0c, docs/benchmarks-detail.md as of e94e51a;
-    cases morphing, variables and pendulum): on the 240-element skin the adjoint is faster with one
-    variable and one to three responses, the two tie at six, direct is faster at twelve; with
-    five variables the adjoint is faster up to the fifteen responses measured, and at every
-    count of variables with three responses (the morphing study's 5, the flexible pendulum's
-    32 with one)."""
+    the variables that are not sections or materials, which share one pass a step. Where the
+    process may use two cores or more and the direct method's ``overlap`` is not False, its
+    sensitivities run beside the primal's steps on the second core (:class:`Direct`), which
+    hides them until they outgrow the primal: then the direct method is the faster in wall
+    time up to some twenty variables, the adjoint beyond. So the rule is:
+
+    * the direct method where a response has no ``vjp`` (the adjoint needs one for each), or
+      where there are at most ``crossover`` variables per response;
+    * else, with two usable cores or more (:func:`~morphlab.sensitivity.beside.usable_cores`)
+      and ``direct.overlap`` not False, the direct method up to ``beside_variables``
+      variables;
+    * else the adjoint.
+
+    Both figures are measured (BENCHMARKS.md, cases morphing, variables and pendulum).
+    ``crossover`` (0.15) is the crossing of the two methods' costs without the direct method's
+    thread: on the 240-element skin the adjoint is faster with one variable and one to three
+    responses, the two tie at six, direct is faster at twelve. ``beside_variables`` (24) is
+    where they cross with it on two idle cores: with three responses the direct method costs
+    1.0-1.2 primal runs up to twenty variables on the skin and the morphing study's five,
+    the adjoint 1.3-1.4; at 32 variables of the flexible pendulum and 50 of the skin the
+    adjoint is the faster.
+
+    The choice reads the model and the cores the process may use, not the load of the moment:
+    the two methods agree to round-off, not bit for bit, and a choice by the load would change
+    a gradient's last bits from run to run. On a machine whose other core is busy the direct
+    method runs without its thread (``overlap=None``: :func:`~morphlab.sensitivity.beside.
+    spare_core`) and costs about its CPU time: on the skin 1.3-1.6 primal runs up to five
+    variables and 1.8 at twenty (measured with the thread, which itself costs some), the
+    adjoint about 1.5.
+    """
 
     crossover: float = 0.15
+    beside_variables: int = 24
     direct: Direct = field(default_factory=Direct)
     adjoint: Adjoint = field(default_factory=Adjoint)
 
     name = "auto"
 
     def choose(self, setup: Setup) -> Strategy:
+        """The strategy that runs: :attr:`direct` or :attr:`adjoint` (class docstring)."""
+        n_x, m = len(setup.names), len(setup.responses)
         has_vjp = all(hasattr(fn, "vjp") for fn in setup.responses.values())
-        if has_vjp and len(setup.names) > self.crossover * len(setup.responses):
-            return self.adjoint
-        return self.direct
+        if not has_vjp or n_x <= self.crossover * m:
+            return self.direct
+        beside_ok = self.direct.overlap is not False and beside.usable_cores() >= 2
+        if beside_ok and n_x <= self.beside_variables:
+            return self.direct
+        return self.adjoint
 
     def run(self, setup: Setup) -> Run:
         return self.choose(setup).run(setup)
