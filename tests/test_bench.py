@@ -87,6 +87,11 @@ RESULTS = {
                         "over_primal": {"best": min(a, d)}}
                        for n_x, d, a in ((1, 1.4, 1.35), (50, 5.65, 1.92),
                                          (200, 18.38, 2.21))]
+                   + [{"n_x": 20, "auto_chose": "direct", "faster": "adjoint",
+                       "adjoint_vs_direct": 1e-12, "auto_vs_direct": 1e-12,
+                       "seconds": {"primal": st(0.8), "direct": st(0.896), "adjoint": st(0.864),
+                                   "auto": st(0.9), "finite_difference": st(13.3)},
+                       "over_primal": {"best": 1.08}}]  # a tie: the ranges overlap
                    + [{"n_x": 5, "error": "ZeroDivisionError: boom"}],
                    "by_responses": [
                        {"n_x": 1, "m": 12, "auto_chose": "adjoint", "faster": "direct",
@@ -102,7 +107,8 @@ RESULTS = {
                    "| 5 | failed: ZeroDivisionError: boom", "| 1 | 12 | 1.36 (", "1.42 (",
                    "1.40 (1.26–1.68), adjoint | tie, direct by median |",
                    "1.80 (1.62–2.16), adjoint | direct |", "| 5 | 15 | failed: ValueError: bad",
-                   "slower method at (n_x 1, m 30)."]),
+                   "slower method at (n_x 1, m 30).", "faster method at every n_x where one "
+                   "is faster (n_x = 20: a tie"]),
     "pendulum": ({"n_elements": 32, "n_x": 32, "steps": 1000, "responses": ["tip_y"],
                   "settings": {}, "auto_chose": "adjoint", "adjoint_vs_direct": 1e-14,
                   "seconds": {"primal": st(0.25), "direct": st(0.83), "adjoint": st(0.335),
@@ -206,6 +212,7 @@ def test_the_summary_is_one_page_with_every_case_its_targets_and_command():
     assert "4.06" in text["morphing"] and "≥ 5 ✗ (#37)" in text["morphing"]
     assert "1.34" in text["pendulum"] and "≤ 1.4 ✓ (#37)" in text["pendulum"]
     assert "n_x = 5" in text["variables"]  # its failed row is named
+    assert "at every n_x where one is faster; a tie at n_x = 20" in text["variables"]
     assert "exact 49 runs" in text["optimizers"]
     assert "Exudyn is not installed" in text["exudyn"]
     for case in report.DESCRIPTIONS:

@@ -184,6 +184,21 @@ def morphing(r: dict, check) -> list[str]:
     return lines
 
 
+def tie(row: dict) -> bool:
+    """Whether a row's direct and adjoint times overlap (min-max of their rounds): neither is
+    the faster, whichever ``auto`` ran."""
+    d, a = row["seconds"]["direct"], row["seconds"]["adjoint"]
+    return d["min"] <= a["max"] and a["min"] <= d["max"]
+
+
+def auto_verdict(rows: list[dict]) -> tuple[list[str], list[str]]:
+    """The ``n_x`` (as text) of the rows where ``auto`` ran the slower method, and of those
+    where the two methods tie and it ran the one slower by median."""
+    wrong = [str(r["n_x"]) for r in rows if r["auto_chose"] != r["faster"] and not tie(r)]
+    ties = [str(r["n_x"]) for r in rows if r["auto_chose"] != r["faster"] and tie(r)]
+    return wrong, ties
+
+
 def variables(r: dict, check) -> list[str]:
     lines = [f"{r['n_elements']}-element skin, {len(r['responses'])} responses; gradient cost "
              "in primal runs (wall time; the adjoint's in process CPU time beside it).", "",
@@ -202,12 +217,15 @@ def variables(r: dict, check) -> list[str]:
                      f"{row['auto_chose']} | {ratio(t['finite_difference'], p)} | "
                      f"{row['over_primal']['best']:.2f} | {target} |")
     c = r.get("crossover")
-    wrong = [str(row["n_x"]) for row in good if row["auto_chose"] != row["faster"]]
+    wrong, ties = auto_verdict(good)
     worst = max(max(row["adjoint_vs_direct"], row["auto_vs_direct"]) for row in good)
     lines += ["", "Adjoint faster than direct above n_x = " + (
         f"{c:.1f}" if c is not None else "(no crossing in the range)") + "; auto ran the "
         + (f"slower method at n_x = {', '.join(wrong)}" if wrong else "faster method at every "
-           "n_x") + f"; adjoint and auto gradients within {worst:.1e} of direct.", ""]
+           "n_x where one is faster")
+        + (f" (n_x = {', '.join(ties)}: a tie, the two methods' ranges overlap; auto ran the "
+           "one slower by median)" if ties else "")
+        + f"; adjoint and auto gradients within {worst:.1e} of direct.", ""]
     if r.get("by_responses"):
         lines += ["Other numbers of responses m (the first of the three, or the three and "
                   "displacements of skin nodes): gradient cost in primal runs; a tie where "
@@ -222,10 +240,9 @@ def variables(r: dict, check) -> list[str]:
                 continue
             t, p = row["seconds"], row["seconds"]["primal"]["median"]
             d, a = t["direct"], t["adjoint"]
-            tie = d["min"] <= a["max"] and a["min"] <= d["max"]
-            if not tie and row["auto_chose"] != row["faster"]:
+            if not tie(row) and row["auto_chose"] != row["faster"]:
                 wrong.append(f"(n_x {row['n_x']}, m {row['m']})")
-            faster = f"tie, {row['faster']} by median" if tie else row["faster"]
+            faster = f"tie, {row['faster']} by median" if tie(row) else row["faster"]
             lines.append(f"| {row['n_x']} | {row['m']} | {ratio(d, p)} | {ratio(a, p)} | "
                          f"{ratio(t['auto'], p)}, {row['auto_chose']} | {faster} |")
         lines += ["", "Auto ran " + (f"the slower method at {', '.join(wrong)}" if wrong else

@@ -9,6 +9,8 @@ first, and every figure an issue's target judges.
 
 from __future__ import annotations
 
+from .report_cases import auto_verdict
+
 Row = tuple[str, str, str]
 
 
@@ -81,9 +83,10 @@ def variables(r: dict, check) -> list[Row]:
              "; ".join(f"n_x {row['n_x']} {c}" for row in good
                        if (c := check(f"variables.{row['n_x']}",
                                       row["over_primal"]["best"]))))]
-    wrong = [str(row["n_x"]) for row in good if row["auto_chose"] != row["faster"]]
-    rows.append(("... `auto` ran the faster method", "at every n_x" if not wrong else
-                 f"not at n_x = {', '.join(wrong)}", ""))
+    wrong, ties = auto_verdict(good)
+    rows.append(("... `auto` ran the faster method", (
+        "at every n_x where one is faster" if not wrong else f"not at n_x = {', '.join(wrong)}")
+        + (f"; a tie at n_x = {', '.join(ties)}" if ties else ""), ""))
     failed = [str(row["n_x"]) for row in r["rows"] if "error" in row]
     if failed:
         rows.append(("... failed rows", f"n_x = {', '.join(failed)} (details page)", ""))
