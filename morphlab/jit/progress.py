@@ -33,8 +33,9 @@ from numba.core import event
 from ..kernels._jit import LOCKS
 
 #: Compile CPU [s] of a first use on the reference machine (module docstring): the compile
-#: bench's "all compilations" at commit b01da0b (median of two rounds; the statics: the flight
-#: loads' :func:`~morphlab.morphing.aeroelastic.warm_statics` from an empty cache, two runs).
+#: bench's "all compilations" at commit b01da0b, kept in docs/benchmarks-history.md (median of
+#: two rounds; the statics: the flight loads' :func:`~morphlab.morphing.aeroelastic.
+#: warm_statics` from an empty cache, two runs: 30.3 and 33.6 CPU-s).
 ESTIMATES = {"time loop": 36.0, "time loop, every item kind": 63.0, "statics": 32.0,
              "direct": 14.0, "direct-fd": 15.4, "adjoint": 19.3, "complex-step": 15.0}
 
