@@ -71,12 +71,10 @@ def python_loop_ns(seconds: float = 2.0, n: int = 20_000) -> tuple[float, float,
 def machine() -> dict:
     """Cores, usable cores, CPU model, platform and Python of this machine, and its speed
     (:func:`python_loop_ns`: the median, and the 10th and 90th percentiles beside it)."""
+    from ..sensitivity.beside import usable_cores
+
     median, lo, hi = python_loop_ns()
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        usable = os.cpu_count()
-    return {"cores": os.cpu_count(), "usable_cores": usable, "cpu_model": cpu_model(),
+    return {"cores": os.cpu_count(), "usable_cores": usable_cores(), "cpu_model": cpu_model(),
             "platform": platform.platform(), "python": platform.python_version(),
             "python_loop_ns": round(median, 1),
             "python_loop_ns_p10_p90": [round(lo, 1), round(hi, 1)]}

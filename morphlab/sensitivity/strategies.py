@@ -306,9 +306,10 @@ class Auto(Strategy):
     ``crossover`` (0.15) is the crossing of the two methods' costs without the direct method's
     thread: on the 240-element skin the adjoint is faster with one variable and one to three
     responses, the two tie at six, direct is faster at twelve. ``beside_variables`` (24) is
-    where they cross with it on two idle cores: with three responses the direct method costs
-    1.0-1.2 primal runs up to twenty variables on the skin and the morphing study's five,
-    the adjoint 1.3-1.4; at 32 variables of the flexible pendulum and 50 of the skin the
+    where they cross with it on two idle cores: with three responses, over the last two
+    records, the direct method cost 1.05-1.23 primal runs at 1, 5 and 20 variables on the skin
+    and 1.04-1.16 with the morphing study's five, the adjoint 1.08-1.39 and 1.28-1.32 (at 20
+    variables the two tie); at 32 variables of the flexible pendulum and 50 of the skin the
     adjoint is the faster.
 
     The choice reads the model and the cores the process may use, not the load of the moment:
@@ -316,8 +317,8 @@ class Auto(Strategy):
     a gradient's last bits from run to run. On a machine whose other core is busy the direct
     method runs without its thread (``overlap=None``: :func:`~morphlab.sensitivity.beside.
     spare_core`) and costs about its CPU time: on the skin 1.3-1.6 primal runs up to five
-    variables and 1.8 at twenty (measured with the thread, which itself costs some), the
-    adjoint about 1.5.
+    variables and 1.8-2.0 at twenty (measured with the thread, which itself costs some), the
+    adjoint 1.3-1.5.
     """
 
     crossover: float = 0.15
