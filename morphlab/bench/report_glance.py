@@ -49,10 +49,16 @@ def compile(r: dict, check) -> list[Row]:  # noqa: A001 - the case's name
 
 
 def startup(r: dict, check) -> list[Row]:
-    wall = r["first_result_wall_s"]["median"]
-    return [("warm start (filled cache): `import morphlab`; the quickstart's first result",
-             f"{_m(r['import_wall_s'])} s; {wall:.3g} s",
-             check("startup.first_result", wall))]
+    if "first_result_at_s" not in r:  # a record from before the time to result was kept
+        wall = r["first_result_wall_s"]["median"]
+        return [("warm start (filled cache): `import morphlab`; the quickstart's first result",
+                 f"{_m(r['import_wall_s'])} s; {wall:.3g} s",
+                 check("startup.first_result", wall))]
+    at = r["first_result_at_s"]["median"]
+    return [("warm start (filled cache): `import morphlab`; the quickstart's first result, "
+             "launch to result (process exit); the dependencies' floor",
+             f"{_m(r['import_wall_s'])} s; {at:.3g} s ({_m(r['first_result_wall_s'])} s); "
+             f"{_m(r['floor_at_s'])} s", check("startup.first_result", at))]
 
 
 def morphing(r: dict, check) -> list[Row]:
