@@ -246,7 +246,7 @@ def test_a_startup_record_without_the_time_to_result_is_judged_on_its_wall_time(
     row = summary_rows(report.render(rec))["startup"][0]
     assert row[1] == "0.851 s; 1.91 s" and row[2] == "≤ 1.5 ✗ (#36)"
     detail = report.render_detail(rec)
-    assert "1.91 (1.72–2.29)" in detail and "floor" not in detail
+    assert "1.91 (1.72–2.29)" in detail and "the dependencies' floor" not in detail
     new = report.render_detail(full_record())
     assert "1.31 (1.18–1.57) | ≤ 1.5 ✓ (#36) |" in new and "1.07 (0.963–1.28) |" in new
 

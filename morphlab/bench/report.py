@@ -31,7 +31,7 @@ TARGETS = {
 #: Cases in the order of the page, with a one-line description (also the CLI's help).
 DESCRIPTIONS = {
     "compile": "first use, empty Numba cache: CPU per scenario and per kernel",
-    "startup": "warm start: import, and the quickstart's first result, filled cache",
+    "startup": "warm start, filled cache: import, the quickstart's first result, the floor",
     "morphing": "Table 2: every method's cost in primal runs, morphing defaults",
     "variables": "gradient cost against 1 ... 200 design variables, 240-element skin",
     "pendulum": "flexible pendulum, 32 thickness variables, one response",
