@@ -151,6 +151,21 @@ def _child(argv: list[str]) -> int:
     return 0
 
 
+def timed_process(cmd: list[str], *, env: dict | None = None, timeout: float | None = None
+                  ) -> tuple[subprocess.CompletedProcess, dict]:
+    """Run ``cmd`` (output captured as text) and return it with its CPU time (user and
+    system, ``getrusage(RUSAGE_CHILDREN)``) and wall time from outside, ``{"cpu_s",
+    "wall_s"}`` [s], and ``launched``: the clock (``time.time()``) at its launch."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    launched = time.time()
+    w0 = time.perf_counter()
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+    wall = time.perf_counter() - w0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return proc, {"cpu_s": (after.ru_utime - before.ru_utime)
+                  + (after.ru_stime - before.ru_stime), "wall_s": wall, "launched": launched}
+
+
 def fresh_process(scenario: str, *, cache_dir: str | None, quick: bool = False,
                   timeout: float = 3600.0) -> dict:
     """Run ``scenario`` in a new Python process (with ``NUMBA_CACHE_DIR=cache_dir``; None:
@@ -172,11 +187,7 @@ def fresh_process(scenario: str, *, cache_dir: str | None, quick: bool = False,
             cmd.append("--quick")
         if scenario == "main-command":
             cmd += ["--out-dir", os.path.join(work, "out")]
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        w0 = time.perf_counter()
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-        wall = time.perf_counter() - w0
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        proc, times = timed_process(cmd, env=env, timeout=timeout)
         if proc.returncode != 0:
             tail = [x.strip() for x in (proc.stderr or proc.stdout).strip().splitlines()[-5:]]
             raise RuntimeError(f"scenario {scenario!r} failed (status {proc.returncode}): "
@@ -185,9 +196,7 @@ def fresh_process(scenario: str, *, cache_dir: str | None, quick: bool = False,
             measured = json.load(fh)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    measured["process"] = {
-        "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
-        "wall_s": wall}
+    measured["process"] = {k: times[k] for k in ("cpu_s", "wall_s")}
     return measured
 
 

@@ -22,22 +22,22 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import shutil
-import subprocess
 import sys
 import tempfile
-import time
 
 from ..studies.timing import time_stats
+from .compile import timed_process
 from .scenarios import QUICKSTART
 
 #: The end of each timed script: the clock at its result, and the compilations it ran.
 _TAIL = '''
 import json as _json
 import time as _time
-_json.dump({"result_at": _time.time(), "in_process_s": _time.perf_counter() - _T0,
-            "compilations": _COUNT.n}, open(_OUT, "w"))
+_AT = _time.time()
+with open(_OUT, "w") as _fh:
+    _json.dump({"result_at": _AT, "in_process_s": _time.perf_counter() - _T0,
+                "compilations": _COUNT.n}, _fh)
 '''
 
 #: The head of each timed script: its start, and a count of Numba's compilations.
@@ -82,20 +82,15 @@ _one(np.ones(3))
 
 
 def _timed(cmd: list[str], out: str | None = None) -> dict:
-    """CPU and wall [s] of the process ``cmd``; with ``out``, the JSON its script wrote there
-    and its time from launch to result ``at_s`` [s]."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    launched = time.time()
-    w0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - w0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    """CPU and wall [s] of the process ``cmd`` (:func:`~morphlab.bench.compile.timed_process`);
+    with ``out``, the JSON its script wrote there and its time from launch to result
+    ``at_s`` [s]."""
+    proc, m = timed_process(cmd)
     if proc.returncode != 0:
         tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:]
-        raise RuntimeError(f"{' '.join(cmd[-1:])} failed (status {proc.returncode}): "
+        raise RuntimeError(f"{cmd[-1]} failed (status {proc.returncode}): "
                            f"{tail[0] if tail else '?'}")
-    m = {"cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
-         "wall_s": wall}
+    launched = m.pop("launched")
     if out is not None:
         with open(out, encoding="utf-8") as fh:
             m.update(json.load(fh))
@@ -127,7 +122,8 @@ def case_startup(repeats: int, quick: bool) -> dict:
         quickstart = _script(folder, "quickstart", QUICKSTART)
         floor = _script(folder, "floor", FLOOR)
         importing = [sys.executable, "-c", "import morphlab"]
-        _timed(*quickstart), _timed(*floor)  # fill the caches if they were not yet
+        _timed(*quickstart)  # fill the caches if they were not yet
+        _timed(*floor)
         imports, firsts, floors = [], [], []
         for _ in range(repeats):
             imports.append(_timed(importing))
